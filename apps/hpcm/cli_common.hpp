@@ -1,0 +1,49 @@
+#pragma once
+// Shared pieces of the hpcm subcommands: where the volume comes from, parameter loading,
+// output folders, progress.
+#include <CLI/CLI.hpp>
+#include <string>
+
+#include "hpcm/hpcm.hpp"
+
+namespace hpcm::cli {
+
+/// --phantom NX,NY,NZ | --input VOLUME [--downsample F] [--roi x0,y0,z0,x1,y1,z1] [--series UID] [--seed S]
+struct VolumeSource {
+  std::string phantom;     ///< "NX,NY,NZ"
+  std::string input;       ///< file or DICOM directory
+  int downsample = 1;
+  std::string roi;
+  std::string series;
+  std::uint64_t seed = 1;
+  Int3 default_phantom{128, 128, 75};
+};
+void add_volume_options(CLI::App* cmd, VolumeSource& src);
+/// Loads (or generates), crops and down-samples. Throws hpcm::Error naming the option.
+Volume load_volume(const VolumeSource& src);
+/// Original (not down-sampled) volume, for exports onto the input grid.
+Volume load_volume_full(const VolumeSource& src);
+
+/// "NX,NY,NZ" -> Int3, each in [lo, hi]; throws naming `option`.
+Int3 parse_int3(const std::string& s, const std::string& option, int lo, int hi);
+
+/// --params FILE (+ --dynamics override); returns validated params.
+Params load_params_option(const std::string& path);
+
+/// Creates DIR (and parents); throws naming `option` when impossible.
+void make_output_dir(const std::string& dir, const std::string& option);
+/// Writes text atomically (temp file + rename).
+void write_text_file(const std::string& path, const std::string& text);
+
+/// True when stderr is a terminal and CI is not set.
+bool want_progress();
+void progress_bar(const std::string& label, int done, int total);
+
+void register_phantom(CLI::App& app);
+void register_run(CLI::App& app);
+void register_experiment(CLI::App& app);
+void register_params(CLI::App& app);
+void register_info(CLI::App& app);
+void register_bench(CLI::App& app);
+
+}  // namespace hpcm::cli

@@ -1,0 +1,77 @@
+#pragma once
+// The backend seam: the primitive stages of one frame, implemented once on the CPU
+// (src/solver + src/dynamics) and once in CUDA (src/cuda). The frame pipeline
+// (simulation.hpp) is written once and calls these in SPEC §6 order for every backend.
+#include <array>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "hpcm/state.hpp"
+
+namespace hpcm {
+
+struct PropagateStats {
+  int sweeps = 0;          ///< sweeps until nothing changed
+  bool converged = true;   ///< false if the sweep cap was hit
+  Index reached = 0;       ///< elements the wave moved (finite arrival time, not FIXED)
+};
+
+struct RelaxStats {
+  int sweeps = 0;              ///< sweeps run (early exit included)
+  float max_correction = 0;    ///< largest correction of the last sweep
+};
+
+/// Per-tissue speed reduction of one frame: speed = |X_end(t) - X_end(t-1)|.
+struct SpeedStats {
+  PerTissue sum{};        ///< sum of speeds per class
+  PerTissue max{};        ///< max speed per class
+  Index moved = 0;        ///< elements with speed > 0
+};
+
+enum class BackendKind { Cpu, Cuda };
+const char* backend_name(BackendKind k);
+BackendKind parse_backend(const std::string& s, const std::string& what);
+
+class Backend {
+ public:
+  virtual ~Backend() = default;
+  virtual BackendKind kind() const = 0;
+
+  /// Uploads the model, params and a state (positions, velocities, flags are taken from it).
+  virtual void load(const Model& m, const Params& p, const State& s) = 0;
+  /// Parameter change that keeps the model (dynamics, relaxation settings).
+  virtual void set_params(const Params& p) = 0;
+  /// The FIXED set for this frame (grab + anchors) with targets; all others are released.
+  virtual void set_fixed(const std::vector<Index>& elements, const std::vector<Vec3>& targets,
+                         const std::vector<std::uint8_t>& flags) = 0;
+
+  /// X- <- X. May be a no-op when the backend fuses the copy into velocity_layer().
+  virtual void snapshot() = 0;
+  /// Timestamped HP-ChainMail wave from the FIXED elements (SPEC §4).
+  virtual PropagateStats propagate() = 0;
+  /// Up to `sweeps` relaxation sweeps with early exit (SPEC §4).
+  virtual RelaxStats relax(int sweeps) = 0;
+  /// The independent-velocity layer (SPEC §5) + boundary clamp + frame-end snapshot.
+  /// Fills `speeds` when non-null (only then are speeds reduced).
+  virtual void velocity_layer(SpeedStats* speeds) = 0;
+
+  /// Bricks that had work this frame (sparse bookkeeping; 0 when idle).
+  virtual Index active_bricks() const = 0;
+  /// Stage timer: mark(k) at stage boundaries, elapsed_ms(a, b) between two marks of the
+  /// current frame (CPU: steady clock; CUDA: events).
+  virtual void mark(int slot) = 0;
+  virtual double elapsed_ms(int from_slot, int to_slot) = 0;
+
+  virtual void download(State& s) = 0;
+  virtual void download_positions(std::vector<Vec3>& pos) = 0;
+  virtual Vec3 position(Index i) = 0;
+};
+
+/// Creates a backend. Cuda throws hpcm::Error("no CUDA device ...") when none is present, or
+/// when hpcm was built without the CUDA backend.
+std::unique_ptr<Backend> make_backend(BackendKind k);
+/// True when the CUDA backend is compiled in and a device is present; `why` explains if not.
+bool cuda_available(std::string* why = nullptr);
+
+}  // namespace hpcm

@@ -1,0 +1,35 @@
+#pragma once
+// Medical-image IO on ITK (library hpcm::io, optional): NIfTI, NRRD, MetaImage, DICOM series.
+// Volumes are reoriented to LPS index order on read (SPEC §2).
+#include <string>
+#include <vector>
+
+#include "hpcm/model.hpp"
+#include "hpcm/volume.hpp"
+
+namespace hpcm::io {
+
+struct ReadOptions {
+  std::string series_uid;  ///< DICOM directories with several series: which one
+};
+
+/// Reads a volume file or a DICOM series directory; values in HU. Throws hpcm::Error with a
+/// one-line message naming the path on any failure.
+Volume read_volume(const std::string& path, const ReadOptions& opt = {});
+
+/// Writes a scalar volume; format from the extension (.nii, .nii.gz, .nrrd, .nhdr, .mha, .mhd).
+/// Atomic: written to a temporary file in the same folder, then renamed.
+void write_volume(const Volume& v, const std::string& path);
+
+// --- exports for 3D Slicer (SPEC §9, docs/slicer.md) ---
+/// Displacement field u = X - X0 in millimetres (physical LPS), on the simulated lattice's
+/// physical grid, as a 3-component float vector image (.nii, .nii.gz or .nrrd).
+void write_displacement_field(const Model& m, const std::vector<Vec3>& pos, const std::string& path);
+/// Deformed CT resampled onto the original input grid (inverse mapping; outside keeps air),
+/// written in the format given by the extension with the original geometry.
+void write_deformed_volume(const Volume& original, const Model& m, const std::vector<Vec3>& pos,
+                           const std::string& path);
+/// Tissue class label map (uint8: 0 air .. 3 bone) with a Slicer colour table written beside it.
+void write_label_map(const Model& m, const std::string& path);
+
+}  // namespace hpcm::io

@@ -1,0 +1,39 @@
+#pragma once
+// Heterogeneous HP-ChainMail material: tolerance tau and time penalty w from HU by
+// piecewise-linear interpolation through control points (tau in log space), SPEC §3.
+#include <vector>
+
+#include "hpcm/types.hpp"
+
+namespace hpcm {
+
+struct MaterialPoint {
+  float hu;   ///< control-point HU
+  float tau;  ///< tolerance in lattice units, > 0
+  float w;    ///< propagation time penalty, > 0
+};
+
+/// Box limits of one link (Gibson): axial spacing in [min_d, max_d], |shear| <= shear.
+struct LinkLimits {
+  float min_d, max_d, shear, w;
+};
+
+HPCM_HD inline LinkLimits limits_from_tau(float tau, float w) {
+  return {1.0f - 0.8f * tau, 1.0f + tau, tau, w};
+}
+
+struct MaterialTable {
+  /// Defaults: air, fat, muscle/organ, bone (SPEC §3 table).
+  std::vector<MaterialPoint> points{{-1000.f, 0.5f, 1.0f}, {-100.f, 0.3f, 0.6f}, {50.f, 0.15f, 0.3f}, {700.f, 0.005f, 0.02f}};
+
+  /// Throws hpcm::Error: at least 2 points, HU finite and strictly increasing,
+  /// tau in (0, 1], w in (0, 100].
+  void validate() const;
+  /// Interpolated values; constant beyond the first and last control point.
+  float tau(float hu) const;
+  float w(float hu) const;
+  /// Link between two elements: values at the pair's mean HU (symmetric).
+  LinkLimits link(float hu_a, float hu_b) const;
+};
+
+}  // namespace hpcm

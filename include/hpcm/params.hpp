@@ -1,0 +1,56 @@
+#pragma once
+// Every user setting of SPEC §3–5 in one struct, with validation. Defaults are the tuned
+// values documented in docs/tuning.md.
+#include <string>
+
+#include "hpcm/material.hpp"
+#include "hpcm/tissue.hpp"
+
+namespace hpcm {
+
+enum class DampingMode { None, Simple, Viscoelastic };  ///< conditions A, B, C
+const char* damping_mode_name(DampingMode m);            ///< "none", "simple", "viscoelastic"
+/// Parses "none|simple|viscoelastic" (also "A|B|C"); throws hpcm::Error naming `what`.
+DampingMode parse_damping_mode(const std::string& s, const std::string& what);
+
+enum class AnchorMode { None, Bone, Border };
+const char* anchor_mode_name(AnchorMode m);
+AnchorMode parse_anchor_mode(const std::string& s, const std::string& what);
+
+struct SolverParams {
+  float grab_radius = 1.5f;        ///< (0, 64] lattice units
+  int brick_size = 8;              ///< 4, 8 or 16 (CPU bricks for sparse work)
+  int relax_sweeps = 8;            ///< K, [0, 256]
+  float relax_threshold = 1e-4f;   ///< [0, 1) lattice units: smaller corrections are skipped
+  AnchorMode anchors = AnchorMode::None;
+  int max_propagation_sweeps = 100000;  ///< safety cap, [1, 10^7]
+  void validate() const;
+};
+
+struct DynamicsParams {
+  DampingMode mode = DampingMode::Viscoelastic;
+  float alpha = 0.85f;                       ///< simple damping, [0, 1]
+  float b0 = 0.15f;                          ///< viscoelastic constant term, [0, 1]
+  PerTissue b1{0.0f, 0.5f, 0.5f, 0.5f};      ///< viscoelastic displacement term, [0, 1]; air 0
+  PerTissue inverse_mass{1.0f, 1.0f, 0.15f, 0.0f};  ///< >= 0, at least one > 0
+  float s_min = 0.0f, s_max = 1.0f;          ///< response-scale clamp, 0 <= s_min <= s_max <= 1
+  float dead_zone = 1e-3f;                   ///< [0, 1) lattice units
+  float v_max = 0.5f;                        ///< (0, 10] lattice units per frame
+  float beta = 1.0f;                         ///< global inertia gain, [0, 2]
+  PerTissue rho{1.0f, 1.0f, 1.0f, 1.0f};     ///< per-class position gain, [0, 2]
+  float margin = 2.0f;                       ///< boundary margin, [0, 64] lattice units
+  void validate() const;
+  /// s_class = clamp(inverse_mass / max(inverse_mass), s_min, s_max) (SPEC §5.3).
+  PerTissue response_scale() const;
+};
+
+struct Params {
+  TissueThresholds tissue;
+  MaterialTable material;
+  SolverParams solver;
+  DynamicsParams dynamics;
+  /// Validates every part; the message names the key (e.g. "dynamics.alpha") and range.
+  void validate() const;
+};
+
+}  // namespace hpcm

@@ -1,0 +1,60 @@
+#pragma once
+// Scripted interactions: grabs with keyframed drag paths, holds and releases (SPEC §7).
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "hpcm/simulation.hpp"
+
+namespace hpcm {
+
+/// Tool offset reached after `frame` frames of a grab (lattice units).
+struct Keyframe {
+  int frame = 0;
+  Vec3 offset{};
+};
+
+struct GrabAction {
+  std::optional<Int3> centre;   ///< element coordinates; nullopt = "auto" (paper grab centre)
+  float radius = 0;             ///< <= 0: params.solver.grab_radius
+  int start = 0;                ///< scenario frame at which the grab begins
+  std::vector<Keyframe> path;   ///< offset in relative frame r is path(r + 1), linear, held after the last key
+  int release = 0;              ///< relative frame of release (first frame without the grab)
+};
+
+struct Scenario {
+  std::string name = "custom";
+  int frames = 0;               ///< total frames to play
+  std::vector<GrabAction> grabs;  ///< in sequence, must not overlap in time
+
+  /// SPEC §7: pull the anterior skin point by `distance` toward -y over `pull` frames,
+  /// hold `hold` frames, release, record `record` frames.
+  static Scenario paper_protocol(float distance = 6.0f, int pull = 20, int hold = 10, int record = 120);
+  /// Throws hpcm::Error when a grab is out of the lattice, overlaps another, or frames < 1.
+  void validate(const Model& m) const;
+  /// Frame of the last release (the first idle frame after it), or -1 without grabs.
+  int last_release_frame() const;
+};
+
+/// Tool offset of a grab action in relative frame r (linear between keyframes).
+Vec3 path_offset(const GrabAction& g, int r);
+
+/// Plays a scenario frame by frame on a Simulation.
+class ScenarioPlayer {
+ public:
+  ScenarioPlayer(const Scenario& s, Simulation& sim);
+  bool done() const { return frame_ >= scenario_.frames; }
+  int frame() const { return frame_; }
+  /// Applies this frame's input (grab / move / release) and steps the simulation.
+  FrameReport step(const StepOptions& opt = {});
+  /// Resolved grab centre of grab action k.
+  Index centre_of(std::size_t k) const { return centres_.at(k); }
+
+ private:
+  Scenario scenario_;
+  Simulation& sim_;
+  std::vector<Index> centres_;
+  int frame_ = 0;
+};
+
+}  // namespace hpcm

@@ -1,0 +1,78 @@
+#pragma once
+// The frame pipeline (SPEC §6), written once and driving any Backend:
+//   X- <- X;  deform stage (targets, propagate, relax K) while a grab is held, else idle
+//   stage (relax K only, never propagate);  velocity layer -> X_{t+1}; boundary clamp.
+#include <memory>
+#include <vector>
+
+#include "hpcm/backend.hpp"
+
+namespace hpcm {
+
+struct FrameReport {
+  int frame = 0;
+  bool deform = false;          ///< deformation stage (a grab is held) or idle stage
+  float grab_offset = 0;        ///< |tool offset| in lattice units (0 when nothing is held)
+  Index moved_elements = 0;     ///< elements whose position changed this frame
+  Index active_bricks = 0;
+  float max_link_violation = -1;  ///< after the ChainMail stage; -1 when not measured
+  int propagate_sweeps = 0, relax_sweeps = 0;
+  bool propagate_converged = true;
+  double chainmail_ms = 0, inertia_ms = 0, snapshot_ms = 0, sim_total_ms = 0;
+  PerTissue mean_speed{}, max_speed{};  ///< |X_end(t) - X_end(t-1)| per class
+};
+
+struct StepOptions {
+  bool speeds = true;               ///< reduce per-tissue speeds (costs a little)
+  bool link_violation = false;      ///< measure max link violation over all links (O(N))
+};
+
+class Simulation {
+ public:
+  Simulation(Model model, Params params, BackendKind backend = BackendKind::Cpu);
+  Simulation(Model model, Params params, std::unique_ptr<Backend> backend);
+
+  const Model& model() const { return model_; }
+  const Params& params() const { return params_; }
+  /// Applies new params; rebuilds materials when tissue thresholds or material changed.
+  void set_params(const Params& p);
+
+  // --- grab tool (SPEC §4) ---
+  /// Grabs every element within `radius` (lattice units, rest coordinates) of `centre`;
+  /// radius <= 0 uses params.solver.grab_radius. Replaces any current grab.
+  void grab(Index centre, float radius = 0);
+  /// Moves the tool: grabbed elements go rigidly to (position at grab time + offset).
+  void move_tool(Vec3 offset);
+  void release();
+  bool grabbing() const { return !grabbed_.empty(); }
+  Index grab_centre() const { return grab_centre_; }
+  Vec3 tool_offset() const { return tool_offset_; }
+  const std::vector<Index>& grabbed() const { return grabbed_; }
+
+  /// One frame of the pipeline.
+  FrameReport step(const StepOptions& opt = {});
+  /// Back to rest (X = X0, V = 0), grab released, frame counter 0.
+  void reset();
+  int frame() const { return frame_; }
+
+  /// Full state (downloaded from the backend when it changed).
+  const State& state();
+  Vec3 position(Index i) { return backend_->position(i); }
+  Backend& backend() { return *backend_; }
+
+ private:
+  void push_fixed();
+  Model model_;
+  Params params_;
+  std::unique_ptr<Backend> backend_;
+  State host_;
+  bool host_valid_ = false;
+  std::vector<Index> anchors_;
+  std::vector<Index> grabbed_;
+  std::vector<Vec3> grab_origin_;
+  Index grab_centre_ = -1;
+  Vec3 tool_offset_{};
+  int frame_ = 0;
+};
+
+}  // namespace hpcm

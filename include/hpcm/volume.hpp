@@ -1,0 +1,35 @@
+#pragma once
+// A CT volume in Hounsfield units with its physical geometry, in LPS index order
+// (x: right->left, y: anterior->posterior, z: inferior->superior).
+#include <array>
+#include <vector>
+
+#include "hpcm/types.hpp"
+
+namespace hpcm {
+
+struct Volume {
+  Int3 dims;                                   ///< voxels per axis
+  std::array<double, 3> spacing{1, 1, 1};      ///< mm per voxel along each index axis
+  std::array<double, 3> origin{0, 0, 0};       ///< mm, physical position of voxel (0,0,0), LPS
+  std::array<double, 9> direction{1, 0, 0, 0, 1, 0, 0, 0, 1};  ///< row-major 3x3, column a = axis a
+  std::vector<float> hu;                       ///< HU, x fastest
+
+  std::size_t size() const { return static_cast<std::size_t>(dims.x) * dims.y * dims.z; }
+  Index index(int x, int y, int z) const { return x + static_cast<Index>(dims.x) * (y + static_cast<Index>(dims.y) * z); }
+  float at(int x, int y, int z) const { return hu[static_cast<std::size_t>(index(x, y, z))]; }
+  /// Physical position (mm) of a continuous index position.
+  std::array<double, 3> index_to_physical(double i, double j, double k) const;
+};
+
+/// Throws hpcm::Error if dims are not positive, values not finite, spacing not positive.
+void validate_volume(const Volume& v, const std::string& what);
+
+/// Integer down-sampling by block mean of HU. Blocks at the upper border that do not fit
+/// completely are averaged over the voxels they have. factor must be in [1, min(dims)].
+Volume downsample(const Volume& v, int factor);
+
+/// Crop to voxel box [lo, hi) (hi exclusive); geometry follows (origin shifts).
+Volume crop(const Volume& v, Int3 lo, Int3 hi);
+
+}  // namespace hpcm
