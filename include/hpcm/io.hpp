@@ -17,6 +17,25 @@ struct ReadOptions {
 /// one-line message naming the path on any failure.
 Volume read_volume(const std::string& path, const ReadOptions& opt = {});
 
+/// One series of a DICOM directory (for listing and --series).
+struct DicomSeriesInfo {
+  std::string uid;          ///< SeriesInstanceUID (what --series takes)
+  std::string modality;     ///< e.g. "CT"
+  std::string description;  ///< SeriesDescription, may be empty
+  int files = 0;            ///< number of image files (slices)
+  int rows = 0, columns = 0;
+};
+/// Lists the series of a DICOM directory (non-recursive). Throws hpcm::Error naming the path
+/// when it is not a directory, is empty or holds no DICOM image.
+std::vector<DicomSeriesInfo> list_dicom_series(const std::string& dir);
+
+/// True for the extensions write_volume accepts (.nii, .nii.gz, .nrrd, .nhdr, .mha, .mhd).
+bool is_supported_volume_extension(const std::string& path);
+/// The file extension an export of `input` should use so that it keeps the input's format:
+/// ".nii.gz", ".nii", ".nrrd", ".nhdr", ".mha" or ".mhd"; for a DICOM series directory (and
+/// anything else) ".nrrd" (DICOM export is not supported; NRRD keeps the full geometry).
+std::string volume_extension_for(const std::string& input);
+
 /// Writes a scalar volume; format from the extension (.nii, .nii.gz, .nrrd, .nhdr, .mha, .mhd).
 /// Atomic: written to a temporary file in the same folder, then renamed.
 void write_volume(const Volume& v, const std::string& path);

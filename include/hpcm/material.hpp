@@ -11,6 +11,7 @@ struct MaterialPoint {
   float hu;   ///< control-point HU
   float tau;  ///< tolerance in lattice units, > 0
   float w;    ///< propagation time penalty, > 0
+  friend bool operator==(const MaterialPoint&, const MaterialPoint&) = default;
 };
 
 /// Box limits of one link (Gibson): axial spacing in [min_d, max_d], |shear| <= shear.
@@ -34,6 +35,7 @@ struct MaterialTable {
   float w(float hu) const;
   /// Link between two elements: values at the pair's mean HU (symmetric).
   LinkLimits link(float hu_a, float hu_b) const;
+  friend bool operator==(const MaterialTable&, const MaterialTable&) = default;
 };
 
 }  // namespace hpcm

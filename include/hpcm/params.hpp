@@ -25,6 +25,7 @@ struct SolverParams {
   AnchorMode anchors = AnchorMode::None;
   int max_propagation_sweeps = 100000;  ///< safety cap, [1, 10^7]
   void validate() const;
+  friend bool operator==(const SolverParams&, const SolverParams&) = default;
 };
 
 struct DynamicsParams {
@@ -42,6 +43,7 @@ struct DynamicsParams {
   void validate() const;
   /// s_class = clamp(inverse_mass / max(inverse_mass), s_min, s_max) (SPEC §5.3).
   PerTissue response_scale() const;
+  friend bool operator==(const DynamicsParams&, const DynamicsParams&) = default;
 };
 
 struct Params {
@@ -51,6 +53,7 @@ struct Params {
   DynamicsParams dynamics;
   /// Validates every part; the message names the key (e.g. "dynamics.alpha") and range.
   void validate() const;
+  friend bool operator==(const Params&, const Params&) = default;
 };
 
 }  // namespace hpcm

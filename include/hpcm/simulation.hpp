@@ -31,6 +31,9 @@ class Simulation {
  public:
   Simulation(Model model, Params params, BackendKind backend = BackendKind::Cpu);
   Simulation(Model model, Params params, std::unique_ptr<Backend> backend);
+  // The backend keeps a pointer to model(): a Simulation stays where it was made.
+  Simulation(const Simulation&) = delete;
+  Simulation& operator=(const Simulation&) = delete;
 
   const Model& model() const { return model_; }
   const Params& params() const { return params_; }
@@ -62,6 +65,7 @@ class Simulation {
 
  private:
   void push_fixed();
+  void compute_anchors();
   Model model_;
   Params params_;
   std::unique_ptr<Backend> backend_;

@@ -30,6 +30,7 @@ struct TissueThresholds {
   /// Alternative preset for noisy scanners: air below -500 (so outside air is air),
   /// soft tissue split at 0, bone from 200 (cancellous bone counts as bone).
   static TissueThresholds robust_preset() { return {-500.0f, 0.0f, 200.0f}; }
+  friend bool operator==(const TissueThresholds&, const TissueThresholds&) = default;
 };
 
 }  // namespace hpcm

@@ -1,0 +1,167 @@
+// hpcm experiment: conditions A/B/C of the paper on identical input, the tables, the SPEC §8
+// checks, figures and a Markdown report.
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <thread>
+
+#include "cli_common.hpp"
+#include "hpcm/config.hpp"
+#include "hpcm/experiment.hpp"
+
+namespace hpcm::cli {
+
+namespace {
+
+std::string machine_description() {
+  std::ifstream f("/proc/cpuinfo");
+  std::string line, model = "unknown CPU";
+  while (std::getline(f, line))
+    if (line.rfind("model name", 0) == 0) {
+      model = line.substr(line.find(':') + 2);
+      break;
+    }
+  return model + ", " + std::to_string(std::thread::hardware_concurrency()) + " hardware threads";
+}
+
+nlohmann::json per_tissue_json(const PerTissue& v) {
+  nlohmann::json j;
+  for (int t = 0; t < kTissueCount; ++t) j[tissue_name(t)] = v[t];
+  return j;
+}
+
+nlohmann::json params_json(const Params& p) {
+  nlohmann::json j;
+  j["tissue"] = {{"t1", p.tissue.t1}, {"t2", p.tissue.t2}, {"t3", p.tissue.t3}};
+  for (const auto& pt : p.material.points) j["material"]["points"].push_back({{"hu", pt.hu}, {"tau", pt.tau}, {"w", pt.w}});
+  j["solver"] = {{"grab_radius", p.solver.grab_radius}, {"brick_size", p.solver.brick_size},
+                 {"relax_sweeps", p.solver.relax_sweeps}, {"relax_threshold", p.solver.relax_threshold},
+                 {"anchors", anchor_mode_name(p.solver.anchors)}, {"max_propagation_sweeps", p.solver.max_propagation_sweeps}};
+  const auto& d = p.dynamics;
+  j["dynamics"] = {{"alpha", d.alpha}, {"b0", d.b0}, {"b1", per_tissue_json(d.b1)},
+                   {"inverse_mass", per_tissue_json(d.inverse_mass)}, {"s_min", d.s_min}, {"s_max", d.s_max},
+                   {"dead_zone", d.dead_zone}, {"v_max", d.v_max}, {"beta", d.beta}, {"rho", per_tissue_json(d.rho)},
+                   {"margin", d.margin}};
+  return j;
+}
+
+std::string find_report_script() {
+  const char* env = std::getenv("HPCM_REPORT_SCRIPT");
+  if (env && *env) return env;
+  for (const std::string& p : {std::string(HPCM_SOURCE_DIR) + "/scripts/hpcm_report.py", std::string("/usr/local/share/hpcm/hpcm_report.py"),
+                               std::string("/usr/share/hpcm/hpcm_report.py")})
+    if (std::filesystem::exists(p)) return p;
+  return {};
+}
+
+}  // namespace
+
+void register_experiment(CLI::App& app) {
+  struct Opts {
+    VolumeSource source;
+    std::string params, scenario, out, backend = "cpu";
+    int settle = 2000;
+    bool no_report = false;
+  };
+  auto o = std::make_shared<Opts>();
+  o->source.default_phantom = {128, 128, 75};
+  auto* cmd = app.add_subcommand("experiment", "Run conditions A/B/C of the paper protocol and write tables, checks, figures, report");
+  add_volume_options(cmd, o->source);
+  cmd->add_option("--params", o->params, "Parameter file (TOML)");
+  cmd->add_option("--scenario", o->scenario, "Scenario file (TOML) instead of the paper protocol");
+  cmd->add_option("--settle-frames", o->settle, "Idle frames after the scenario for the SPEC 8.5 check, >= 1")->capture_default_str();
+  cmd->add_option("--backend", o->backend, "cpu | cuda")->capture_default_str();
+  cmd->add_option("--out", o->out, "Output folder")->required();
+  cmd->add_flag("--no-report", o->no_report, "Write the CSV/JSON files only (no figures, no report.md)");
+  cmd->callback([o] {
+    if (o->settle < 1) throw Error("--settle-frames " + std::to_string(o->settle) + " is out of range: must be >= 1");
+    const Params p = load_params_option(o->params);
+    ExperimentOptions eo;
+    eo.backend = parse_backend(o->backend, "--backend");
+    eo.settle_frames = o->settle;
+    if (!o->scenario.empty() && o->scenario != "paper") eo.scenario = config::load_scenario(o->scenario);
+    std::string script;
+    if (!o->no_report) {
+      script = find_report_script();
+      if (script.empty()) throw Error("report script hpcm_report.py not found (set HPCM_REPORT_SCRIPT or use --no-report)");
+    }
+    make_output_dir(o->out, "--out");
+    const Volume v = load_volume(o->source);
+    const Model m = build_model(v, p);
+    if (want_progress())
+      eo.progress = [](int c, int done, int total) {
+        if (done % 10 == 0 || done == total) progress_bar(std::string("condition ") + char('A' + c), done, total);
+      };
+    const ExperimentResult r = run_experiment(m, p, eo);
+
+    std::ostringstream curves, t2, t3;
+    curves << "condition,frame_after_release,tissue,mean_speed,max_speed\n";
+    t2 << "condition,tissue,initial,peak,auc\n";
+    t3 << "condition,chainmail_ms,inertia_ms,snapshot_ms,sim_total_ms\n";
+    nlohmann::json js;
+    js["lattice"] = {{"dims", {m.dims.x, m.dims.y, m.dims.z}}, {"elements", m.size()},
+                     {"source", o->source.input.empty() ? "phantom " + (o->source.phantom.empty() ? std::string("128,128,75") : o->source.phantom)
+                                                        : o->source.input},
+                     {"downsample", o->source.downsample}, {"class_count", {}}};
+    for (int t = 0; t < kTissueCount; ++t) js["lattice"]["class_count"][tissue_name(t)] = m.class_count[t];
+    js["backend"] = backend_name(eo.backend);
+    js["machine"] = machine_description();
+    js["scenario"] = {{"name", eo.scenario.name}, {"frames", eo.scenario.frames}, {"release_frame", r.release_frame},
+                      {"recorded_frames", r.recorded_frames}, {"settle_frames", eo.settle_frames}, {"grab_centre", r.grab_centre}};
+    const Int3 gc = m.coords(r.grab_centre);
+    js["scenario"]["grab_centre_xyz"] = {gc.x, gc.y, gc.z};
+    js["params"] = params_json(p);
+    char buf[256];
+    for (const auto& c : r.conditions) {
+      for (int f = r.release_frame; f < static_cast<int>(c.frames.size()); ++f)
+        for (int t = 0; t < kTissueCount; ++t) {
+          std::snprintf(buf, sizeof buf, "%s,%d,%s,%.9g,%.9g\n", c.label.c_str(), f - r.release_frame, tissue_name(t),
+                        c.frames[f].mean_speed[t], c.frames[f].max_speed[t]);
+          curves << buf;
+        }
+      auto& jc = js["conditions"][c.label];
+      jc["mode"] = damping_mode_name(c.mode);
+      for (int t = 0; t < kTissueCount; ++t) {
+        std::snprintf(buf, sizeof buf, "%s,%s,%.9g,%.9g,%.9g\n", c.label.c_str(), tissue_name(t), c.initial[t], c.peak[t], c.auc[t]);
+        t2 << buf;
+        jc["tissues"][tissue_name(t)] = {{"initial", c.initial[t]}, {"peak", c.peak[t]}, {"auc", c.auc[t]}};
+      }
+      std::snprintf(buf, sizeof buf, "%s,%.6f,%.6f,%.6f,%.6f\n", c.label.c_str(), c.chainmail_ms, c.inertia_ms, c.snapshot_ms,
+                    c.sim_total_ms);
+      t3 << buf;
+      jc["timing_ms"] = {{"chainmail", c.chainmail_ms}, {"inertia", c.inertia_ms}, {"snapshot", c.snapshot_ms}, {"sim_total", c.sim_total_ms}};
+      jc["settle_max_speed"] = c.settle_max_speed;
+      nlohmann::json track = nlohmann::json::array();
+      for (std::size_t f = 0; f < c.centre_track.size(); ++f) {
+        const Vec3 d = c.centre_track[f] - c.centre_rest;
+        track.push_back({d.x, d.y, d.z});
+      }
+      jc["grab_centre_displacement"] = track;
+    }
+    for (const auto& ch : r.checks)
+      js["checks"][ch.name] = {{"holds", ch.holds}, {"value", ch.value}, {"threshold", ch.threshold}, {"spec", ch.spec},
+                               {"description", ch.description}};
+    js["all_hold"] = r.all_hold();
+    write_text_file(o->out + "/curves.csv", curves.str());
+    write_text_file(o->out + "/table2.csv", t2.str());
+    write_text_file(o->out + "/table3.csv", t3.str());
+    write_text_file(o->out + "/summary.json", js.dump(2) + "\n");
+    if (!o->no_report) {
+      const std::string cmdline = "/usr/bin/python3 '" + script + "' '" + o->out + "'";
+      const int rc = std::system(cmdline.c_str());
+      if (rc != 0) throw Error("report script failed (" + cmdline + "); the CSV and JSON files are written");
+    }
+    int held = 0;
+    for (const auto& ch : r.checks) held += ch.holds;
+    std::printf("experiment: %lld elements, checks %d/%zu hold; wrote %s/{curves.csv,table2.csv,table3.csv,summary.json%s}\n",
+                static_cast<long long>(m.size()), held, r.checks.size(), o->out.c_str(),
+                o->no_report ? "" : ",figure3.png,figure4.png,report.md");
+    for (const auto& ch : r.checks)
+      if (!ch.holds) std::printf("  does not hold: %s (SPEC %s): value %.6g, threshold %.6g\n", ch.name.c_str(), ch.spec.c_str(), ch.value, ch.threshold);
+  });
+}
+
+}  // namespace hpcm::cli

@@ -1,0 +1,86 @@
+#include "options.hpp"
+
+#include <CLI/CLI.hpp>
+
+#include <cstdio>
+#include <iostream>
+#include <sstream>
+
+namespace hpcm::viewer {
+
+Int3 parse_int3(const std::string& s, const std::string& what) {
+  int v[3];
+  char tail = 0;
+  if (std::sscanf(s.c_str(), "%d,%d,%d%c", &v[0], &v[1], &v[2], &tail) != 3)
+    throw Error(what + ": expected three integers NX,NY,NZ, got '" + s + "'");
+  return {v[0], v[1], v[2]};
+}
+
+int parse_options(int argc, char** argv, Options& o) {
+  CLI::App app{
+      "hpcm-viewer: interactive dynamic HP-ChainMail soft-tissue simulation on a CT volume or the "
+      "built-in phantom.\nControls: left-drag on a slice grabs and pulls tissue, right/middle-drag pans, "
+      "wheel zooms; space run/pause, n one frame, r reset, s screenshot, 1/2/3 damping A/B/C.\n"
+      "Scripted use: --scenario FILE --frames N --screenshot OUT.png (or --record DIR) plays without a "
+      "mouse, writes PNGs and exits.",
+      "hpcm-viewer"};
+  std::string phantom, size, slices;
+  auto* in = app.add_option("--input,-i", o.input, "CT volume (NIfTI, NRRD, MetaImage) or DICOM series directory");
+  app.add_option("--downsample,-f", o.downsample, "Integer down-sampling factor of --input (block mean)")
+      ->check(CLI::Range(1, 64));
+  auto* ph = app.add_option("--phantom", phantom, "Built-in phantom of NX,NY,NZ elements (default 96,96,64)");
+  in->excludes(ph);
+  app.add_option("--seed", o.seed, "Phantom noise seed");
+  app.add_option("--noise", o.noise_hu, "Phantom noise standard deviation in HU, [0, 200]")->check(CLI::Range(0.0, 200.0));
+  app.add_option("--params,-p", o.params, "TOML parameter file (see hpcm params --defaults)");
+  app.add_option("--scenario", o.scenario, "Scenario: TOML file, 'paper' (SPEC 7 paper protocol) or 'none'");
+  app.add_option("--backend", o.backend, "cpu or cuda");
+  app.add_option("--mode", o.mode, "Damping mode override: none|simple|viscoelastic (or A|B|C)");
+  app.add_option("--radius", o.radius, "Grab radius override in lattice units, (0, 64]")->check(CLI::Range(0.0, 64.0));
+  app.add_option("--frames,-n", o.frames, "Frames to play (default: the scenario's length)")->check(CLI::Range(0, 1000000));
+  app.add_option("--screenshot,-o", o.screenshot, "Write a PNG of the window after the last frame and exit");
+  app.add_option("--record", o.record, "Write one PNG per frame into this directory and exit");
+  app.add_option("--report", o.report, "Write the view geometry (pixel of the grab point per view) to this text file");
+  app.add_option("--size", size, "Window size WxH in pixels (default 1280x800)");
+  app.add_option("--layout", o.layout, "all | axial | coronal | sagittal")
+      ->check(CLI::IsMember({"all", "axial", "coronal", "sagittal"}));
+  app.add_option("--colour,--color", o.colour, "Base colouring: hu (HU window) or tissue")
+      ->check(CLI::IsMember({"hu", "tissue"}));
+  app.add_option("--overlay", o.overlay, "Overlay: none | speed | displacement")
+      ->check(CLI::IsMember({"none", "speed", "displacement"}));
+  app.add_option("--overlay-max", o.overlay_max, "Top of the overlay colour map in lattice units (0: automatic)")
+      ->check(CLI::Range(0.0, 1000.0));
+  app.add_option("--level", o.level, "HU window level");
+  app.add_option("--window", o.window, "HU window width, > 0")->check(CLI::PositiveNumber);
+  app.add_option("--slices", slices, "Slice positions X,Y,Z (sagittal x, coronal y, axial z; -1 = automatic)");
+  app.add_flag("--hide-panel", o.hide_panel, "Hide the control panel (views fill the window)");
+  app.add_flag("--wire", o.wire, "Draw the mesh edges");
+  app.add_flag("--paused", o.paused, "Start paused (interactive use)");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int rc = app.exit(e);
+    return rc;
+  }
+  try {
+    if (!phantom.empty()) o.phantom = parse_int3(phantom, "--phantom");
+    if (!slices.empty()) {
+      const Int3 s = parse_int3(slices, "--slices");
+      o.slices = {s.x, s.y, s.z};
+    }
+    if (!size.empty()) {
+      int w = 0, h = 0;
+      char tail = 0;
+      if (std::sscanf(size.c_str(), "%dx%d%c", &w, &h, &tail) != 2 || w < 320 || h < 240 || w > 16384 || h > 16384)
+        throw Error("--size: expected WxH with 320 <= W <= 16384 and 240 <= H <= 16384, got '" + size + "'");
+      o.width = w;
+      o.height = h;
+    }
+  } catch (const Error& e) {
+    std::cerr << "hpcm-viewer: " << e.what() << "\n";
+    return 2;
+  }
+  return -1;
+}
+
+}  // namespace hpcm::viewer

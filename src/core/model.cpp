@@ -1,0 +1,63 @@
+#include "hpcm/model.hpp"
+
+#include <limits>
+
+namespace hpcm {
+
+void rebuild_materials(Model& m, const Params& p) {
+  const Index n = m.size();
+  m.tissue.resize(static_cast<std::size_t>(n));
+  m.tau.resize(static_cast<std::size_t>(n));
+  for (auto& l : m.link) l.resize(static_cast<std::size_t>(n));
+  std::array<Index, kTissueCount> counts{};
+  const int nx = m.dims.x, ny = m.dims.y, nz = m.dims.z;
+#pragma omp parallel for schedule(static)
+  for (Index i = 0; i < n; ++i) {
+    m.tissue[i] = static_cast<std::uint8_t>(p.tissue.classify(m.hu[i]));
+    m.tau[i] = p.material.tau(m.hu[i]);
+  }
+  for (Index i = 0; i < n; ++i) ++counts[m.tissue[i]];
+  m.class_count = counts;
+  const Index stride[3] = {1, nx, static_cast<Index>(nx) * ny};
+#pragma omp parallel for schedule(static)
+  for (int z = 0; z < nz; ++z)
+    for (int y = 0; y < ny; ++y)
+      for (int x = 0; x < nx; ++x) {
+        const Index i = m.index(x, y, z);
+        const int c[3] = {x, y, z};
+        const int d[3] = {nx, ny, nz};
+        for (int a = 0; a < 3; ++a) {
+          if (c[a] + 1 < d[a])
+            m.link[a][i] = p.material.link(m.hu[i], m.hu[i + stride[a]]);
+          else
+            m.link[a][i] = LinkLimits{1.0f, 1.0f, 0.0f, 1.0f};  // no link at the + border
+        }
+      }
+}
+
+Model build_model(const Volume& v, const Params& p) {
+  validate_volume(v, "volume");
+  p.validate();
+  const double n = static_cast<double>(v.dims.x) * v.dims.y * v.dims.z;
+  if (n > static_cast<double>(std::numeric_limits<std::int32_t>::max()))
+    throw Error("volume has " + std::to_string(static_cast<long long>(n)) +
+                " elements; at most 2^31-1 are supported (use --downsample)");
+  Model m;
+  m.dims = v.dims;
+  m.spacing = v.spacing;
+  m.origin = v.origin;
+  m.direction = v.direction;
+  m.hu = v.hu;
+  rebuild_materials(m, p);
+  return m;
+}
+
+Index paper_grab_centre(const Model& m) {
+  const int z = m.dims.z / 2, x = m.dims.x / 2;
+  for (int y = 0; y < m.dims.y; ++y)
+    if (m.hu[static_cast<std::size_t>(m.index(x, y, z))] >= -500.0f) return m.index(x, y, z);
+  throw Error("paper protocol: no element with HU >= -500 on the line x = " + std::to_string(x) +
+              ", z = " + std::to_string(z) + " (is there a body in the volume?)");
+}
+
+}  // namespace hpcm

@@ -1,0 +1,315 @@
+// hpcm::io, the parts without ITK: formats by extension, reorientation to LPS index order,
+// inverse-mapping resampling of the deformed lattice, displacement in millimetres.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <unistd.h>
+
+#include "hpcm/io.hpp"
+#include "io_detail.hpp"
+
+namespace hpcm::io {
+namespace detail {
+
+namespace {
+bool ends_with(const std::string& s, const std::string& suffix) {
+  return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+}  // namespace
+
+Format format_of(const std::string& path) {
+  std::string s = std::filesystem::path(path).filename().string();
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
+  if (ends_with(s, ".nii.gz")) return Format::NiftiGz;
+  if (ends_with(s, ".nii")) return Format::Nifti;
+  if (ends_with(s, ".nrrd")) return Format::Nrrd;
+  if (ends_with(s, ".nhdr")) return Format::Nhdr;
+  if (ends_with(s, ".mha")) return Format::Mha;
+  if (ends_with(s, ".mhd")) return Format::Mhd;
+  return Format::Unknown;
+}
+
+const char* format_name(Format f) {
+  switch (f) {
+    case Format::Nifti:
+    case Format::NiftiGz: return "NIfTI";
+    case Format::Nrrd:
+    case Format::Nhdr: return "NRRD";
+    case Format::Mha:
+    case Format::Mhd: return "MetaImage";
+    default: return "unknown";
+  }
+}
+
+std::string extension_of(Format f) {
+  switch (f) {
+    case Format::Nifti: return ".nii";
+    case Format::NiftiGz: return ".nii.gz";
+    case Format::Nrrd: return ".nrrd";
+    case Format::Nhdr: return ".nhdr";
+    case Format::Mha: return ".mha";
+    case Format::Mhd: return ".mhd";
+    default: return "";
+  }
+}
+
+AxisMap lps_axis_map(const std::array<double, 9>& d) {
+  AxisMap m;
+  bool row_used[3] = {false, false, false}, col_used[3] = {false, false, false};
+  for (int k = 0; k < 3; ++k) {
+    int br = -1, bc = -1;
+    double best = -1;
+    for (int r = 0; r < 3; ++r) {
+      if (row_used[r]) continue;
+      for (int c = 0; c < 3; ++c) {
+        if (col_used[c]) continue;
+        const double v = std::abs(d[r * 3 + c]);
+        if (v > best) best = v, br = r, bc = c;
+      }
+    }
+    row_used[br] = col_used[bc] = true;
+    m.src[br] = bc;
+    m.flip[br] = d[br * 3 + bc] < 0;
+  }
+  return m;
+}
+
+Volume reorient_to_lps(const float* data, const Geometry& g) {
+  const AxisMap m = lps_axis_map(g.direction);
+  const int od[3] = {g.dims.x, g.dims.y, g.dims.z};
+  const std::int64_t ostride[3] = {1, od[0], static_cast<std::int64_t>(od[0]) * od[1]};
+  Volume v;
+  int nd[3];
+  std::int64_t step[3];
+  std::int64_t start = 0;
+  for (int p = 0; p < 3; ++p) {
+    const int a = m.src[p];
+    nd[p] = od[a];
+    v.spacing[p] = g.spacing[a];
+    const double sgn = m.flip[p] ? -1.0 : 1.0;
+    for (int r = 0; r < 3; ++r) v.direction[r * 3 + p] = sgn * g.direction[r * 3 + a];
+    step[p] = m.flip[p] ? -ostride[a] : ostride[a];
+    if (m.flip[p]) start += static_cast<std::int64_t>(od[a] - 1) * ostride[a];
+  }
+  v.dims = {nd[0], nd[1], nd[2]};
+  // New origin: physical position of the old voxel that becomes (0,0,0).
+  for (int r = 0; r < 3; ++r) {
+    double o = g.origin[r];
+    for (int p = 0; p < 3; ++p) {
+      if (!m.flip[p]) continue;
+      const int a = m.src[p];
+      o += g.direction[r * 3 + a] * g.spacing[a] * (od[a] - 1);
+    }
+    v.origin[r] = o;
+  }
+  v.hu.resize(v.size());
+  const bool identity = m.src[0] == 0 && m.src[1] == 1 && m.src[2] == 2 && !m.flip[0] && !m.flip[1] && !m.flip[2];
+  if (identity) {
+    std::copy(data, data + v.size(), v.hu.begin());
+    return v;
+  }
+#pragma omp parallel for schedule(static)
+  for (int z = 0; z < nd[2]; ++z) {
+    for (int y = 0; y < nd[1]; ++y) {
+      std::int64_t src = start + z * step[2] + y * step[1];
+      float* dst = v.hu.data() + (static_cast<std::int64_t>(z) * nd[1] + y) * nd[0];
+      for (int x = 0; x < nd[0]; ++x, src += step[0]) dst[x] = data[src];
+    }
+  }
+  return v;
+}
+
+std::array<double, 9> mat_inverse(const std::array<double, 9>& m) {
+  const double a = m[0], b = m[1], c = m[2], d = m[3], e = m[4], f = m[5], g = m[6], h = m[7], i = m[8];
+  const double A = e * i - f * h, B = -(d * i - f * g), C = d * h - e * g;
+  const double det = a * A + b * B + c * C;
+  if (!(std::abs(det) > 1e-300) || !std::isfinite(det)) throw Error("singular direction/spacing matrix");
+  const double s = 1.0 / det;
+  return {A * s, -(b * i - c * h) * s, (b * f - c * e) * s,
+          B * s, (a * i - c * g) * s,  -(a * f - c * d) * s,
+          C * s, -(a * h - b * g) * s, (a * e - b * d) * s};
+}
+
+namespace {
+// Index -> physical: P = origin + D * diag(spacing) * q.
+std::array<double, 9> index_to_physical_matrix(const std::array<double, 9>& dir, const std::array<double, 3>& sp) {
+  std::array<double, 9> a{};
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) a[r * 3 + c] = dir[r * 3 + c] * sp[c];
+  return a;
+}
+std::array<double, 9> mat_mul(const std::array<double, 9>& x, const std::array<double, 9>& y) {
+  std::array<double, 9> r{};
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      for (int k = 0; k < 3; ++k) r[i * 3 + j] += x[i * 3 + k] * y[k * 3 + j];
+  return r;
+}
+std::array<double, 3> mat_vec(const std::array<double, 9>& m, const std::array<double, 3>& v) {
+  return {m[0] * v[0] + m[1] * v[1] + m[2] * v[2], m[3] * v[0] + m[4] * v[1] + m[5] * v[2],
+          m[6] * v[0] + m[7] * v[1] + m[8] * v[2]};
+}
+
+// Snap a continuous index to the nearest integer when within tol (geometry round-off).
+inline double snap(double q) {
+  const double r = std::nearbyint(q);
+  return std::abs(q - r) < 1e-4 ? r : q;
+}
+}  // namespace
+
+std::vector<float> resample_deformed(const Volume& original, const Model& m, const std::vector<Vec3>& pos,
+                                     int max_iterations) {
+  if (static_cast<Index>(pos.size()) != m.size())
+    throw Error("deformed volume: " + std::to_string(pos.size()) + " positions for a lattice of " +
+                std::to_string(m.size()) + " elements");
+  if (original.hu.size() != original.size() || original.size() == 0)
+    throw Error("deformed volume: the original volume is empty");
+  const std::array<double, 9> A = index_to_physical_matrix(m.direction, m.spacing);       // lattice -> mm
+  const std::array<double, 9> B = index_to_physical_matrix(original.direction, original.spacing);  // input -> mm
+  const std::array<double, 9> Ainv = mat_inverse(A), Binv = mat_inverse(B);
+  const std::array<double, 9> M = mat_mul(Ainv, B);     // input index -> lattice
+  const std::array<double, 9> Minv = mat_mul(Binv, A);  // lattice -> input index
+  const std::array<double, 3> c = mat_vec(Ainv, {original.origin[0] - m.origin[0], original.origin[1] - m.origin[1],
+                                                 original.origin[2] - m.origin[2]});
+  const std::array<double, 3> cinv = mat_vec(Binv, {m.origin[0] - original.origin[0], m.origin[1] - original.origin[1],
+                                                    m.origin[2] - original.origin[2]});
+  const int N[3] = {m.dims.x, m.dims.y, m.dims.z};
+  const int O[3] = {original.dims.x, original.dims.y, original.dims.z};
+  // Displacement in lattice units at every lattice point.
+  std::vector<Vec3> u(pos.size());
+  bool any = false;
+  for (Index i = 0; i < m.size(); ++i) {
+    u[i] = pos[i] - m.rest(i);
+    any = any || u[i].x != 0 || u[i].y != 0 || u[i].z != 0;
+  }
+  auto sample_u = [&](const double X[3], double out[3]) {
+    int i0[3];
+    double f[3];
+    out[0] = out[1] = out[2] = 0;
+    // Outside the lattice u is extended constantly from its border (continuous, so the
+    // fixed-point iteration stays well behaved).
+    for (int a = 0; a < 3; ++a) {
+      double q = std::clamp(X[a], 0.0, double(N[a] - 1));
+      int k = std::min(static_cast<int>(q), std::max(N[a] - 2, 0));
+      i0[a] = k;
+      f[a] = N[a] > 1 ? q - k : 0.0;
+    }
+    const Index sx = N[0] > 1 ? 1 : 0, sy = N[1] > 1 ? N[0] : 0, sz = N[2] > 1 ? Index(N[0]) * N[1] : 0;
+    const Index base = i0[0] + Index(N[0]) * (i0[1] + Index(N[1]) * i0[2]);
+    for (int k = 0; k < 8; ++k) {
+      const double w = ((k & 1) ? f[0] : 1 - f[0]) * ((k & 2) ? f[1] : 1 - f[1]) * ((k & 4) ? f[2] : 1 - f[2]);
+      if (w == 0) continue;
+      const Vec3& d = u[base + ((k & 1) ? sx : 0) + ((k & 2) ? sy : 0) + ((k & 4) ? sz : 0)];
+      out[0] += w * d.x;
+      out[1] += w * d.y;
+      out[2] += w * d.z;
+    }
+  };
+  auto sample_hu = [&](double q[3]) -> float {
+    int i0[3], i1[3];
+    double f[3];
+    for (int a = 0; a < 3; ++a) {
+      if (!(q[a] >= -0.5 && q[a] <= O[a] - 0.5)) return kAirHU;
+      const double s = std::clamp(snap(q[a]), 0.0, double(O[a] - 1));
+      i0[a] = static_cast<int>(std::floor(s));
+      f[a] = s - i0[a];
+      i1[a] = std::min(i0[a] + 1, O[a] - 1);
+    }
+    double v = 0;
+    for (int k = 0; k < 8; ++k) {
+      const double w = ((k & 1) ? f[0] : 1 - f[0]) * ((k & 2) ? f[1] : 1 - f[1]) * ((k & 4) ? f[2] : 1 - f[2]);
+      if (w == 0) continue;
+      v += w * original.at((k & 1) ? i1[0] : i0[0], (k & 2) ? i1[1] : i0[1], (k & 4) ? i1[2] : i0[2]);
+    }
+    return static_cast<float>(v);
+  };
+  std::vector<float> out(original.size());
+#pragma omp parallel for schedule(dynamic, 1)
+  for (int z = 0; z < O[2]; ++z) {
+    for (int y = 0; y < O[1]; ++y) {
+      for (int x = 0; x < O[0]; ++x) {
+        const double q[3] = {double(x), double(y), double(z)};
+        double xl[3];
+        for (int r = 0; r < 3; ++r) xl[r] = M[r * 3] * q[0] + M[r * 3 + 1] * q[1] + M[r * 3 + 2] * q[2] + c[r];
+        double X[3] = {xl[0], xl[1], xl[2]};
+        if (any) {
+          // Fixed point X = x - u(X), starting at X = x.
+          for (int it = 0; it < max_iterations; ++it) {
+            double d[3];
+            sample_u(X, d);
+            double change = 0;
+            for (int a = 0; a < 3; ++a) {
+              const double nx = xl[a] - d[a];
+              change = std::max(change, std::abs(nx - X[a]));
+              X[a] = nx;
+            }
+            if (change < 1e-5) break;
+          }
+        }
+        double q0[3];
+        for (int r = 0; r < 3; ++r) q0[r] = Minv[r * 3] * X[0] + Minv[r * 3 + 1] * X[1] + Minv[r * 3 + 2] * X[2] + cinv[r];
+        out[original.index(x, y, z)] = sample_hu(q0);
+      }
+    }
+  }
+  return out;
+}
+
+std::vector<float> displacement_mm(const Model& m, const std::vector<Vec3>& pos) {
+  if (static_cast<Index>(pos.size()) != m.size())
+    throw Error("displacement field: " + std::to_string(pos.size()) + " positions for a lattice of " +
+                std::to_string(m.size()) + " elements");
+  const std::array<double, 9> A = index_to_physical_matrix(m.direction, m.spacing);
+  std::vector<float> out(pos.size() * 3);
+  for (Index i = 0; i < m.size(); ++i) {
+    const Vec3 d = pos[i] - m.rest(i);
+    if (!std::isfinite(d.x) || !std::isfinite(d.y) || !std::isfinite(d.z))
+      throw Error("displacement field: non-finite position at element " + std::to_string(i));
+    for (int r = 0; r < 3; ++r)
+      out[3 * i + r] = static_cast<float>(A[r * 3] * d.x + A[r * 3 + 1] * d.y + A[r * 3 + 2] * d.z);
+  }
+  return out;
+}
+
+std::size_t available_memory_bytes() {
+  std::ifstream f("/proc/meminfo");
+  std::string key;
+  std::size_t value = 0;
+  std::string unit;
+  while (f >> key >> value >> unit) {
+    if (key == "MemAvailable:") return value * 1024;
+  }
+  const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
+  return pages > 0 && page > 0 ? static_cast<std::size_t>(pages) * static_cast<std::size_t>(page) : 0;
+}
+
+std::string format_bytes(double bytes) {
+  char buf[64];
+  if (bytes >= 1e9)
+    std::snprintf(buf, sizeof buf, "%.3g GB", bytes / 1e9);
+  else if (bytes >= 1e6)
+    std::snprintf(buf, sizeof buf, "%.3g MB", bytes / 1e6);
+  else
+    std::snprintf(buf, sizeof buf, "%.0f bytes", bytes);
+  return buf;
+}
+
+}  // namespace detail
+
+bool is_supported_volume_extension(const std::string& path) {
+  return detail::format_of(path) != detail::Format::Unknown;
+}
+
+std::string volume_extension_for(const std::string& input) {
+  std::error_code ec;
+  if (!input.empty() && !std::filesystem::is_directory(input, ec)) {
+    const detail::Format f = detail::format_of(input);
+    if (f != detail::Format::Unknown) return detail::extension_of(f);
+  }
+  return ".nrrd";
+}
+
+}  // namespace hpcm::io

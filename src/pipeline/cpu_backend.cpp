@@ -1,0 +1,89 @@
+#include "pipeline/cpu_backend.hpp"
+
+namespace hpcm {
+
+void CpuBackend::load(const Model& m, const Params& p, const State& s) {
+  m_ = &m;
+  p_ = p;
+  k_ = dynamics::make_constants(p.dynamics, m.dims);
+  pos_ = s.pos;
+  pre_ = s.pos;  // invariant between frames: X- == X
+  vel_ = s.vel;
+  time_ = s.time;
+  flags_ = s.flags;
+  fixed_.clear();
+  targets_.clear();
+  for (Index i = 0; i < m.size(); ++i)
+    if (flags_[i] & kFixed) flags_[i] = 0;
+  chainmail_.init(m, p.solver.brick_size);
+  layer_.init(chainmail_.grid());
+  // Anything that carries velocity or is off rest must be looked at by the first frame.
+  const auto& g = chainmail_.grid();
+  for (Index i = 0; i < m.size(); ++i)
+    if (!(vel_[i] == Vec3{}) || !(pos_[i] == m.rest(i))) chainmail_.touched()[g.brick_of_index(i)] = 1;
+  chainmail_.hot() = chainmail_.touched();
+}
+
+void CpuBackend::set_params(const Params& p) {
+  const bool bricks_changed = p.solver.brick_size != p_.solver.brick_size;
+  p_ = p;
+  k_ = dynamics::make_constants(p.dynamics, m_->dims);
+  if (bricks_changed) {
+    State s;
+    download(s);
+    load(*m_, p, s);
+  }
+}
+
+void CpuBackend::set_fixed(const std::vector<Index>& elements, const std::vector<Vec3>& targets,
+                           const std::vector<std::uint8_t>& flags) {
+  for (Index i : fixed_) flags_[i] = 0;
+  fixed_ = elements;
+  targets_ = targets;
+  for (std::size_t k = 0; k < fixed_.size(); ++k) flags_[fixed_[k]] = static_cast<std::uint8_t>(kFixed | flags[k]);
+}
+
+PropagateStats CpuBackend::propagate() {
+  const auto& g = chainmail_.grid();
+  for (std::size_t k = 0; k < fixed_.size(); ++k) {
+    const Index i = fixed_[k];
+    if (!(pos_[i] == targets_[k])) {
+      pos_[i] = targets_[k];
+      chainmail_.touched()[g.brick_of_index(i)] = 1;
+      chainmail_.hot()[g.brick_of_index(i)] = 1;
+    }
+  }
+  PropagateStats st = chainmail_.propagate(*m_, pos_, pre_, time_, flags_, fixed_, p_.solver.max_propagation_sweeps);
+  active_ = chainmail_.last_active_bricks();
+  return st;
+}
+
+RelaxStats CpuBackend::relax(int sweeps) {
+  RelaxStats st = chainmail_.relax(*m_, pos_, time_, flags_, sweeps, p_.solver.relax_threshold);
+  active_ = std::max(active_, chainmail_.last_active_bricks());
+  return st;
+}
+
+void CpuBackend::velocity_layer(SpeedStats* speeds) {
+  dynamics::LayerBuffers buf{&pos_, &pre_, &vel_, &flags_};
+  layer_.apply(*m_, k_, chainmail_.grid(), buf, chainmail_.touched(), chainmail_.hot(), speeds);
+  active_ = std::max(active_, layer_.last_bricks());
+}
+
+void CpuBackend::mark(int slot) {
+  if (slot == 0) active_ = 0;
+  marks_[slot] = std::chrono::steady_clock::now();
+}
+
+double CpuBackend::elapsed_ms(int a, int b) {
+  return std::chrono::duration<double, std::milli>(marks_[b] - marks_[a]).count();
+}
+
+void CpuBackend::download(State& s) {
+  s.pos = pos_;
+  s.vel = vel_;
+  s.time = time_;
+  s.flags = flags_;
+}
+
+}  // namespace hpcm

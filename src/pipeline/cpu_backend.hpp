@@ -1,0 +1,46 @@
+#pragma once
+// The CPU backend: HP-ChainMail (src/solver) + the velocity layer (src/dynamics) over host
+// arrays. X- is kept equal to X between frames by the layer's fused frame-end snapshot, so
+// snapshot() has nothing left to copy.
+#include <chrono>
+
+#include "dynamics/velocity_layer.hpp"
+#include "hpcm/backend.hpp"
+#include "solver/chainmail.hpp"
+
+namespace hpcm {
+
+class CpuBackend final : public Backend {
+ public:
+  BackendKind kind() const override { return BackendKind::Cpu; }
+  void load(const Model& m, const Params& p, const State& s) override;
+  void set_params(const Params& p) override;
+  void set_fixed(const std::vector<Index>& elements, const std::vector<Vec3>& targets,
+                 const std::vector<std::uint8_t>& flags) override;
+  void snapshot() override {}
+  PropagateStats propagate() override;
+  RelaxStats relax(int sweeps) override;
+  void velocity_layer(SpeedStats* speeds) override;
+  Index active_bricks() const override { return active_; }
+  void mark(int slot) override;
+  double elapsed_ms(int from_slot, int to_slot) override;
+  void download(State& s) override;
+  void download_positions(std::vector<Vec3>& pos) override { pos = pos_; }
+  Vec3 position(Index i) override { return pos_[static_cast<std::size_t>(i)]; }
+
+ private:
+  const Model* m_ = nullptr;
+  Params p_;
+  dynamics::LayerConstants k_{};
+  std::vector<Vec3> pos_, pre_, vel_;
+  std::vector<float> time_;
+  std::vector<std::uint8_t> flags_;
+  std::vector<Index> fixed_;
+  std::vector<Vec3> targets_;
+  solver::ChainMailCpu chainmail_;
+  dynamics::VelocityLayerCpu layer_;
+  Index active_ = 0;
+  std::chrono::steady_clock::time_point marks_[8];
+};
+
+}  // namespace hpcm

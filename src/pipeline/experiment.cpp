@@ -1,0 +1,209 @@
+#include "hpcm/experiment.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace hpcm {
+
+bool ExperimentResult::all_hold() const {
+  return std::all_of(checks.begin(), checks.end(), [](const Check& c) { return c.holds; });
+}
+
+void table2(const std::vector<FrameReport>& frames, int release, int count, PerTissue& initial, PerTissue& peak,
+            PerTissue& auc) {
+  initial = peak = auc = PerTissue{};
+  for (int f = release; f < std::min<int>(release + count, static_cast<int>(frames.size())); ++f)
+    for (int t = 0; t < kTissueCount; ++t) {
+      const float v = frames[f].mean_speed[t];
+      if (f == release) initial[t] = v;
+      peak[t] = std::max(peak[t], v);
+      auc[t] += v;
+    }
+}
+
+namespace {
+
+constexpr int kA = 0, kB = 1, kC = 2;
+constexpr int kSkin = static_cast<int>(Tissue::SkinFat), kMuscle = static_cast<int>(Tissue::MuscleOrgan),
+              kBone = static_cast<int>(Tissue::Bone);
+
+bool finite_state(const State& s) {
+  for (std::size_t i = 0; i < s.pos.size(); ++i)
+    for (int a = 0; a < 3; ++a)
+      if (!std::isfinite(s.pos[i][a]) || !std::isfinite(s.vel[i][a])) return false;
+  return true;
+}
+
+float boundary_excess(const State& s, Int3 d, float margin) {
+  const float hi[3] = {d.x - 1 + margin, d.y - 1 + margin, d.z - 1 + margin};
+  float e = 0;
+  for (const Vec3& p : s.pos)
+    for (int a = 0; a < 3; ++a) e = std::max({e, -margin - p[a], p[a] - hi[a]});
+  return e;
+}
+
+ConditionResult run_condition(const Model& model, Params params, DampingMode mode, const ExperimentOptions& opt,
+                              Index centre, int cond_index) {
+  ConditionResult r;
+  r.mode = mode;
+  r.label = std::string(1, static_cast<char>('A' + cond_index));
+  params.dynamics.mode = mode;
+  Simulation sim(model, params, opt.backend);
+  ScenarioPlayer player(opt.scenario, sim);
+  r.centre_rest = sim.model().rest(centre);
+  const int total = opt.scenario.frames + opt.settle_frames;
+  int done = 0;
+  while (!player.done()) {
+    r.frames.push_back(player.step());
+    r.centre_track.push_back(sim.position(centre));
+    const State& s = sim.state();
+    if (r.finite && !finite_state(s)) r.finite = false;
+    r.max_boundary_excess = std::max(r.max_boundary_excess, boundary_excess(s, model.dims, params.dynamics.margin));
+    if (opt.progress) opt.progress(cond_index, ++done, total);
+  }
+  double cm = 0, in = 0, sn = 0, st = 0;
+  for (const auto& f : r.frames) {
+    cm += f.chainmail_ms;
+    in += f.inertia_ms;
+    sn += f.snapshot_ms;
+    st += f.sim_total_ms;
+  }
+  const double n = std::max<std::size_t>(1, r.frames.size());
+  r.chainmail_ms = cm / n;
+  r.inertia_ms = in / n;
+  r.snapshot_ms = sn / n;
+  r.sim_total_ms = st / n;
+  // SPEC §8.5: after release plus settle_frames idle frames every element is (nearly) still.
+  sim.release();
+  for (int k = 0; k < opt.settle_frames; ++k) {
+    const bool last = k + 1 == opt.settle_frames;
+    StepOptions so;
+    so.speeds = last;
+    const FrameReport fr = sim.step(so);
+    if (last) r.settle_max_speed = *std::max_element(fr.max_speed.begin(), fr.max_speed.end());
+    if (opt.progress) opt.progress(cond_index, ++done, total);
+  }
+  r.settle_frames = opt.settle_frames;
+  const State& s = sim.state();
+  if (r.finite && !finite_state(s)) r.finite = false;
+  r.max_boundary_excess = std::max(r.max_boundary_excess, boundary_excess(s, model.dims, params.dynamics.margin));
+  for (Index i = 0; i < model.size(); ++i)
+    if (model.tissue[i] == kBone) r.max_bone_velocity = std::max(r.max_bone_velocity, norm(s.vel[i]));
+  return r;
+}
+
+Check make_check(std::string name, std::string spec, bool holds, double value, double threshold, std::string what) {
+  return Check{std::move(name), std::move(spec), holds, value, threshold, std::move(what)};
+}
+
+}  // namespace
+
+ExperimentResult run_experiment(const Model& model, const Params& params, const ExperimentOptions& opt) {
+  params.validate();
+  opt.scenario.validate(model);
+  if (opt.scenario.grabs.empty()) throw Error("experiment: the scenario has no grab");
+  if (opt.settle_frames < 1) throw Error("experiment: settle_frames must be >= 1");
+  ExperimentResult res;
+  res.params = params;
+  res.dims = model.dims;
+  res.elements = model.size();
+  const auto& g0 = opt.scenario.grabs.back();
+  res.grab_centre = g0.centre ? model.index(g0.centre->x, g0.centre->y, g0.centre->z) : paper_grab_centre(model);
+  res.release_frame = opt.scenario.last_release_frame();
+  res.recorded_frames = opt.scenario.frames - res.release_frame;
+  if (res.recorded_frames < 2) throw Error("experiment: the scenario must record at least 2 frames after the last release");
+
+  const DampingMode modes[3] = {DampingMode::None, DampingMode::Simple, DampingMode::Viscoelastic};
+  for (int c = 0; c < 3; ++c) {
+    res.conditions.push_back(run_condition(model, params, modes[c], opt, res.grab_centre, c));
+    auto& cr = res.conditions.back();
+    table2(cr.frames, res.release_frame, res.recorded_frames, cr.initial, cr.peak, cr.auc);
+  }
+
+  const int rel = res.release_frame;
+  // The pull direction: the last grab's final offset.
+  Vec3 pull = g0.path.empty() ? Vec3{0, -1, 0} : g0.path.back().offset;
+  const float pl = norm(pull);
+  pull = pl > 0 ? (1.0f / pl) * pull : Vec3{0, -1, 0};
+  auto along = [&](const ConditionResult& cr, int f) { return dot(cr.centre_track[f] - cr.centre_rest, pull); };
+
+  // 8.1: condition A does not overshoot: the grab centre's distance from rest never increases.
+  {
+    const auto& a = res.conditions[kA];
+    double worst = 0;
+    for (int f = rel; f < static_cast<int>(a.centre_track.size()); ++f) {
+      const float prev = norm(a.centre_track[f - 1] - a.centre_rest), cur = norm(a.centre_track[f] - a.centre_rest);
+      worst = std::max<double>(worst, cur - prev);
+    }
+    res.checks.push_back(make_check("A_no_overshoot", "8.1", worst <= 1e-6, worst, 1e-6,
+                                    "largest frame-to-frame increase of the grab centre's distance from rest after release (lattice units)"));
+  }
+  // 8.2: B and C overshoot rest and oscillate (velocity along the pull axis changes sign >= 2 times).
+  for (int c : {kB, kC}) {
+    const auto& cr = res.conditions[c];
+    double overshoot = 0;
+    int changes = 0, last_sign = 0;
+    for (int f = rel; f < static_cast<int>(cr.centre_track.size()); ++f) {
+      overshoot = std::max<double>(overshoot, -along(cr, f));  // past rest, away from the pull
+      const float v = along(cr, f) - along(cr, f - 1);
+      const int sign = v > 1e-6f ? 1 : (v < -1e-6f ? -1 : 0);
+      if (sign != 0) {
+        if (last_sign != 0 && sign != last_sign) ++changes;
+        last_sign = sign;
+      }
+    }
+    res.checks.push_back(make_check(cr.label + "_overshoot", "8.2", overshoot > 1e-3, overshoot, 1e-3,
+                                    "largest distance of the grab centre beyond rest, opposite to the pull, after release (lattice units)"));
+    res.checks.push_back(make_check(cr.label + "_velocity_sign_changes", "8.2", changes >= 2, changes, 2,
+                                    "sign changes of the grab centre's velocity along the pull axis after release"));
+  }
+  // 8.3: C damps more than B.
+  {
+    const auto &b = res.conditions[kB], &c = res.conditions[kC];
+    res.checks.push_back(make_check("C_peak_below_B", "8.3", c.peak[kSkin] < b.peak[kSkin], c.peak[kSkin], b.peak[kSkin],
+                                    "skin_fat Peak under C (value) must be below Peak under B (threshold)"));
+    res.checks.push_back(make_check("C_auc_below_B", "8.3", c.auc[kSkin] < b.auc[kSkin], c.auc[kSkin], b.auc[kSkin],
+                                    "skin_fat AUC under C (value) must be below AUC under B (threshold)"));
+    double peak = 0, min_after = 1e30;
+    int peak_f = rel;
+    for (int f = rel; f < static_cast<int>(c.frames.size()); ++f)
+      if (c.frames[f].mean_speed[kSkin] > peak) {
+        peak = c.frames[f].mean_speed[kSkin];
+        peak_f = f;
+      }
+    for (int f = peak_f; f < static_cast<int>(c.frames.size()); ++f)
+      min_after = std::min<double>(min_after, c.frames[f].mean_speed[kSkin]);
+    const double ratio = peak > 0 ? min_after / peak : 0.0;
+    res.checks.push_back(make_check("C_skin_settles_5pct", "8.3", peak > 0 && ratio < 0.05, ratio, 0.05,
+                                    "lowest skin_fat mean speed after its peak, as a fraction of the peak, within the recorded frames"));
+  }
+  // 8.4: tissue hierarchy under C, and bone velocity state exactly 0 when bone is massless.
+  {
+    const auto& c = res.conditions[kC];
+    const char* names[3] = {"initial", "peak", "auc"};
+    const PerTissue* vals[3] = {&c.initial, &c.peak, &c.auc};
+    for (int k = 0; k < 3; ++k) {
+      const PerTissue& v = *vals[k];
+      const double margin = std::min<double>(v[kSkin] - v[kMuscle], v[kMuscle] - v[kBone]);
+      res.checks.push_back(make_check(std::string("C_hierarchy_") + names[k], "8.4", v[kSkin] > v[kMuscle] && v[kMuscle] > v[kBone],
+                                      margin, 0.0,
+                                      std::string("min(skin_fat - muscle_organ, muscle_organ - bone) of ") + names[k] + " under C; must be > 0"));
+    }
+    if (params.dynamics.inverse_mass[kBone] == 0.0f)
+      res.checks.push_back(make_check("C_bone_velocity_zero", "8.4", c.max_bone_velocity == 0.0f, c.max_bone_velocity, 0.0,
+                                      "largest |V| over bone elements under C (bone inverse mass is 0, so it must be exactly 0)"));
+  }
+  // 8.5: finite, within the boundary margin, still after the settle frames.
+  for (const auto& cr : res.conditions) {
+    res.checks.push_back(make_check(cr.label + "_finite", "8.5", cr.finite, cr.finite ? 0 : 1, 0,
+                                    "1 if any position or velocity was NaN or Inf in any frame"));
+    res.checks.push_back(make_check(cr.label + "_within_margin", "8.5", cr.max_boundary_excess <= 0, cr.max_boundary_excess, 0,
+                                    "largest coordinate beyond the boundary box [-margin, N-1+margin] (lattice units)"));
+    res.checks.push_back(make_check(cr.label + "_settled", "8.5", cr.settle_max_speed >= 0 && cr.settle_max_speed < 1e-6,
+                                    cr.settle_max_speed, 1e-6,
+                                    "largest element speed after release plus " + std::to_string(cr.settle_frames) + " idle frames"));
+  }
+  return res;
+}
+
+}  // namespace hpcm

@@ -1,0 +1,91 @@
+#include "hpcm/scenario.hpp"
+
+#include <cmath>
+
+namespace hpcm {
+
+Scenario Scenario::paper_protocol(float distance, int pull, int hold, int record) {
+  if (!(distance >= 0 && distance <= 1000) || pull < 1 || hold < 0 || record < 1)
+    throw Error("paper protocol: distance in [0, 1000], pull >= 1, hold >= 0, record >= 1 required");
+  Scenario s;
+  s.name = "paper_protocol";
+  GrabAction g;
+  g.start = 0;
+  g.path = {{0, {0, 0, 0}}, {pull, {0, -distance, 0}}};  // anterior is -y
+  g.release = pull + hold;
+  s.grabs.push_back(g);
+  s.frames = pull + hold + record;
+  return s;
+}
+
+int Scenario::last_release_frame() const {
+  int r = -1;
+  for (const auto& g : grabs) r = std::max(r, g.start + g.release);
+  return r;
+}
+
+void Scenario::validate(const Model& m) const {
+  if (frames < 1) throw Error("scenario '" + name + "': frames = " + std::to_string(frames) + " must be >= 1");
+  for (std::size_t k = 0; k < grabs.size(); ++k) {
+    const auto& g = grabs[k];
+    const std::string key = "scenario '" + name + "': grab[" + std::to_string(k) + "]";
+    if (g.centre) {
+      const Int3 c = *g.centre;
+      if (c.x < 0 || c.y < 0 || c.z < 0 || c.x >= m.dims.x || c.y >= m.dims.y || c.z >= m.dims.z)
+        throw Error(key + ".centre (" + std::to_string(c.x) + "," + std::to_string(c.y) + "," + std::to_string(c.z) +
+                    ") is outside the lattice " + std::to_string(m.dims.x) + "x" + std::to_string(m.dims.y) + "x" +
+                    std::to_string(m.dims.z));
+    }
+    if (g.start < 0) throw Error(key + ".start must be >= 0");
+    if (g.release < 1) throw Error(key + ".release must be >= 1");
+    if (!(g.radius >= 0 && g.radius <= 64)) throw Error(key + ".radius is out of range [0, 64] (0 = default)");
+    for (std::size_t j = 0; j < g.path.size(); ++j) {
+      const auto& kf = g.path[j];
+      if (kf.frame < 0 || (j > 0 && kf.frame <= g.path[j - 1].frame))
+        throw Error(key + ".keyframes[" + std::to_string(j) + "]: frames must be >= 0 and strictly increasing");
+      if (!std::isfinite(kf.offset.x) || !std::isfinite(kf.offset.y) || !std::isfinite(kf.offset.z))
+        throw Error(key + ".keyframes[" + std::to_string(j) + "]: offset must be finite");
+    }
+    for (std::size_t j = 0; j < k; ++j) {
+      const auto& o = grabs[j];
+      if (g.start < o.start + o.release && o.start < g.start + g.release)
+        throw Error(key + " overlaps grab[" + std::to_string(j) + "] in time: grabs run in sequence");
+    }
+  }
+}
+
+Vec3 path_offset(const GrabAction& g, int r) {
+  if (g.path.empty()) return {};
+  const float t = static_cast<float>(r + 1);  // offset reached at the end of relative frame r
+  if (t <= g.path.front().frame) {
+    const auto& k0 = g.path.front();
+    if (k0.frame <= 0) return k0.offset;
+    return (t / k0.frame) * k0.offset;  // from the grab point (offset 0 at frame 0)
+  }
+  for (std::size_t j = 1; j < g.path.size(); ++j)
+    if (t <= g.path[j].frame) {
+      const auto &a = g.path[j - 1], &b = g.path[j];
+      const float u = (t - a.frame) / static_cast<float>(b.frame - a.frame);
+      return a.offset + u * (b.offset - a.offset);
+    }
+  return g.path.back().offset;
+}
+
+ScenarioPlayer::ScenarioPlayer(const Scenario& s, Simulation& sim) : scenario_(s), sim_(sim) {
+  scenario_.validate(sim.model());
+  for (const auto& g : scenario_.grabs)
+    centres_.push_back(g.centre ? sim.model().index(g.centre->x, g.centre->y, g.centre->z) : paper_grab_centre(sim.model()));
+}
+
+FrameReport ScenarioPlayer::step(const StepOptions& opt) {
+  for (std::size_t k = 0; k < scenario_.grabs.size(); ++k) {
+    const auto& g = scenario_.grabs[k];
+    if (frame_ == g.start) sim_.grab(centres_[k], g.radius);
+    if (frame_ >= g.start && frame_ < g.start + g.release) sim_.move_tool(path_offset(g, frame_ - g.start));
+    if (frame_ == g.start + g.release) sim_.release();
+  }
+  ++frame_;
+  return sim_.step(opt);
+}
+
+}  // namespace hpcm

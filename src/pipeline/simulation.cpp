@@ -1,0 +1,175 @@
+#include "hpcm/simulation.hpp"
+
+#include <cmath>
+
+namespace hpcm {
+
+Simulation::Simulation(Model model, Params params, BackendKind backend)
+    : Simulation(std::move(model), std::move(params), make_backend(backend)) {}
+
+Simulation::Simulation(Model model, Params params, std::unique_ptr<Backend> backend)
+    : model_(std::move(model)), params_(std::move(params)), backend_(std::move(backend)) {
+  params_.validate();
+  if (!backend_) throw Error("Simulation: no backend");
+  reset();
+}
+
+void Simulation::set_params(const Params& p) {
+  p.validate();
+  const bool materials = p.tissue.t1 != params_.tissue.t1 || p.tissue.t2 != params_.tissue.t2 ||
+                         p.tissue.t3 != params_.tissue.t3 || p.material.points.size() != params_.material.points.size() ||
+                         [&] {
+                           for (std::size_t k = 0; k < p.material.points.size(); ++k) {
+                             const auto &a = p.material.points[k], &b = params_.material.points[k];
+                             if (a.hu != b.hu || a.tau != b.tau || a.w != b.w) return true;
+                           }
+                           return false;
+                         }();
+  const bool anchors = p.solver.anchors != params_.solver.anchors;
+  params_ = p;
+  if (materials || anchors) {
+    // New classes / links: keep the current state, rebuild the model and reload.
+    const State s = state();
+    if (materials) rebuild_materials(model_, params_);
+    backend_->load(model_, params_, s);
+    compute_anchors();
+    push_fixed();
+  } else {
+    backend_->set_params(params_);
+  }
+}
+
+void Simulation::reset() {
+  host_ = State::rest(model_);
+  host_valid_ = true;
+  backend_->load(model_, params_, host_);
+  compute_anchors();
+  grabbed_.clear();
+  grab_origin_.clear();
+  grab_centre_ = -1;
+  tool_offset_ = {};
+  frame_ = 0;
+  push_fixed();
+}
+
+void Simulation::compute_anchors() {
+  anchors_.clear();
+  if (params_.solver.anchors == AnchorMode::None) return;
+  const Int3 d = model_.dims;
+  for (Index i = 0; i < model_.size(); ++i) {
+    const Int3 c = model_.coords(i);
+    const bool border = c.x == 0 || c.y == 0 || c.z == 0 || c.x == d.x - 1 || c.y == d.y - 1 || c.z == d.z - 1;
+    const bool bone = model_.tissue[i] == static_cast<std::uint8_t>(Tissue::Bone);
+    if (params_.solver.anchors == AnchorMode::Border ? border : bone) anchors_.push_back(i);
+  }
+}
+
+void Simulation::grab(Index centre, float radius) {
+  if (centre < 0 || centre >= model_.size())
+    throw Error("grab centre index " + std::to_string(centre) + " is out of range [0, " + std::to_string(model_.size() - 1) + "]");
+  const float r = radius > 0 ? radius : params_.solver.grab_radius;
+  if (!(r <= 64.0f)) throw Error("grab radius " + std::to_string(r) + " is out of range (0, 64]");
+  grabbed_.clear();
+  grab_origin_.clear();
+  const Int3 c = model_.coords(centre);
+  const int R = static_cast<int>(std::floor(r));
+  for (int z = std::max(0, c.z - R); z <= std::min(model_.dims.z - 1, c.z + R); ++z)
+    for (int y = std::max(0, c.y - R); y <= std::min(model_.dims.y - 1, c.y + R); ++y)
+      for (int x = std::max(0, c.x - R); x <= std::min(model_.dims.x - 1, c.x + R); ++x) {
+        const float dx = float(x - c.x), dy = float(y - c.y), dz = float(z - c.z);
+        if (dx * dx + dy * dy + dz * dz <= r * r) {
+          const Index i = model_.index(x, y, z);
+          grabbed_.push_back(i);
+          grab_origin_.push_back(backend_->position(i));
+        }
+      }
+  grab_centre_ = centre;
+  tool_offset_ = {};
+  push_fixed();
+}
+
+void Simulation::move_tool(Vec3 offset) {
+  if (!std::isfinite(offset.x) || !std::isfinite(offset.y) || !std::isfinite(offset.z))
+    throw Error("tool offset must be finite");
+  tool_offset_ = offset;
+  push_fixed();
+}
+
+void Simulation::release() {
+  grabbed_.clear();
+  grab_origin_.clear();
+  grab_centre_ = -1;
+  tool_offset_ = {};
+  push_fixed();
+}
+
+void Simulation::push_fixed() {
+  std::vector<Index> idx;
+  std::vector<Vec3> targets;
+  std::vector<std::uint8_t> flags;
+  idx.reserve(anchors_.size() + grabbed_.size());
+  for (Index i : anchors_) {
+    idx.push_back(i);
+    targets.push_back(model_.rest(i));
+    flags.push_back(kAnchor);
+  }
+  for (std::size_t k = 0; k < grabbed_.size(); ++k) {
+    idx.push_back(grabbed_[k]);
+    targets.push_back(grab_origin_[k] + tool_offset_);
+    flags.push_back(kGrabbed);
+  }
+  backend_->set_fixed(idx, targets, flags);
+}
+
+FrameReport Simulation::step(const StepOptions& opt) {
+  FrameReport r;
+  r.frame = frame_;
+  r.deform = grabbing();
+  r.grab_offset = r.deform ? norm(tool_offset_) : 0.0f;
+  Backend& b = *backend_;
+  b.mark(0);
+  b.snapshot();  // X- <- X
+  b.mark(1);
+  if (r.deform) {  // deformation stage: targets, propagate, relax
+    const PropagateStats ps = b.propagate();
+    r.propagate_sweeps = ps.sweeps;
+    r.propagate_converged = ps.converged;
+  }
+  // Idle stage: relax only. Propagating here would cancel the inertial motion (SPEC §6).
+  r.relax_sweeps = b.relax(params_.solver.relax_sweeps).sweeps;
+  b.mark(2);
+  if (opt.link_violation) {
+    std::vector<Vec3> pos;
+    b.download_positions(pos);
+    r.max_link_violation = max_link_violation(model_, pos);
+  }
+  b.mark(3);
+  SpeedStats sp;
+  b.velocity_layer(opt.speeds ? &sp : nullptr);  // X+ -> X_{t+1}, V_t; boundary clamp; frame-end snapshot
+  b.mark(4);
+  r.snapshot_ms = b.elapsed_ms(0, 1);
+  r.chainmail_ms = b.elapsed_ms(1, 2);
+  r.inertia_ms = b.elapsed_ms(3, 4);
+  r.sim_total_ms = r.snapshot_ms + r.chainmail_ms + r.inertia_ms;
+  r.active_bricks = b.active_bricks();
+  if (opt.speeds) {
+    r.moved_elements = sp.moved;
+    for (int t = 0; t < kTissueCount; ++t) {
+      r.mean_speed[t] = model_.class_count[t] > 0 ? sp.sum[t] / static_cast<float>(model_.class_count[t]) : 0.0f;
+      r.max_speed[t] = sp.max[t];
+    }
+  }
+  ++frame_;
+  host_valid_ = false;
+  return r;
+}
+
+const State& Simulation::state() {
+  if (!host_valid_) {
+    backend_->download(host_);
+    host_valid_ = true;
+  }
+  return host_;
+}
+
+}  // namespace hpcm

@@ -1,0 +1,49 @@
+#pragma once
+// HP-ChainMail on the CPU (SPEC §4): brick-sparse timestamped propagation (Jacobi sweeps,
+// double-buffered, OpenMP over bricks) and red-black Gauss-Seidel relaxation. Knows nothing
+// about velocities: it moves positions and reports which bricks it touched.
+#include <vector>
+
+#include "hpcm/backend.hpp"
+#include "hpcm/model.hpp"
+#include "solver/bricks.hpp"
+#include "solver/rules.hpp"
+
+namespace hpcm::solver {
+
+class ChainMailCpu {
+ public:
+  void init(const Model& m, int brick_size);
+
+  /// Wave from the FIXED elements (`fixed`, positions already at their targets in `pos`).
+  /// Non-FIXED elements start from `pre` (X-). Writes pos and time.
+  PropagateStats propagate(const Model& m, std::vector<Vec3>& pos, const std::vector<Vec3>& pre,
+                           std::vector<float>& time, const std::vector<std::uint8_t>& flags,
+                           const std::vector<Index>& fixed, int max_sweeps);
+
+  /// Up to `sweeps` red-black sweeps over hot bricks and their neighbours; corrections
+  /// smaller than `threshold` are skipped; early exit when no correction remains.
+  RelaxStats relax(const Model& m, std::vector<Vec3>& pos, const std::vector<float>& time,
+                   const std::vector<std::uint8_t>& flags, int sweeps, float threshold);
+
+  const BrickGrid& grid() const { return grid_; }
+  /// Bricks whose positions changed this frame (propagation or relaxation).
+  std::vector<std::uint8_t>& touched() { return touched_; }
+  /// Bricks that relaxation must look at next (changed recently).
+  std::vector<std::uint8_t>& hot() { return hot_; }
+  /// Bricks processed by the last propagate/relax calls (for reporting).
+  Index last_active_bricks() const { return last_active_; }
+
+  /// Gathers the neighbours of element (x, y, z) into nb; returns their count.
+  static int gather(const Model& m, const Vec3* pos, const float* time, int x, int y, int z, Index i, Neighbour* nb);
+
+ private:
+  BrickGrid grid_;
+  std::vector<std::uint8_t> touched_, hot_, changed_, wave_;
+  std::vector<Index> list_;
+  std::vector<float> scratch_t_;
+  std::vector<Vec3> scratch_p_;
+  Index last_active_ = 0;
+};
+
+}  // namespace hpcm::solver

@@ -1,0 +1,108 @@
+#pragma once
+// The per-element rules of HP-ChainMail (SPEC §4), written once and used by the CPU solver,
+// the CUDA kernels and the tests, so every backend computes exactly the same thing.
+//
+// Order. Elements are ordered by the key (t, index): a neighbour n is "upstream" of a
+// candidate time c of element e when (t_n, n) < (c, e). The index breaks ties so that
+// every link has an upstream side, which makes the result independent of sweep order.
+//
+// Propagation rule. For each distinct candidate time c = t_n + w_link of a reached neighbour,
+// in ascending order: clamp the wave-start position p0 into the intersection of the boxes
+// of all upstream neighbours; the first c at which this moves the element gives its time and
+// position. If none moves it, it keeps t = +inf and p0 (bit-identical). This is exactly what a
+// Dijkstra-order sweep computes (src/solver/reference/dijkstra.cpp).
+#include "hpcm/material.hpp"
+#include "solver/link_box.hpp"
+
+namespace hpcm::solver {
+
+inline constexpr float kInf = __builtin_huge_valf();
+
+/// One neighbour of an element as the rules see it.
+struct Neighbour {
+  Index idx;
+  int axis;       ///< link axis
+  int side;       ///< +1: element = neighbour + unit_axis at rest; -1: element = neighbour - unit_axis
+  LinkLimits L;   ///< the link's limits
+  float t;        ///< neighbour's arrival time
+  float tau;      ///< neighbour's own tolerance (relaxation weight)
+  Vec3 p;         ///< neighbour's position
+};
+
+HPCM_HD inline bool key_less(float ta, Index ia, float tb, Index ib) { return ta < tb || (ta == tb && ia < ib); }
+
+/// Clamps p0 into the intersection of the boxes of the neighbours in `mask` (bit k = nb[k]).
+/// Where the intersection is empty on an axis, the earliest neighbour's box (by key) is used.
+HPCM_HD inline Vec3 clamp_into_boxes(Vec3 p0, const Neighbour* nb, int count, unsigned mask) {
+  int first = -1;
+  for (int k = 0; k < count; ++k)
+    if ((mask >> k) & 1u)
+      if (first < 0 || key_less(nb[k].t, nb[k].idx, nb[first].t, nb[first].idx)) first = k;
+  Vec3 out = p0;
+  if (first < 0) return out;
+  for (int b = 0; b < 3; ++b) {
+    float lo = -kInf, hi = kInf;
+    for (int k = 0; k < count; ++k)
+      if ((mask >> k) & 1u) {
+        float l, h;
+        link_interval(nb[k].p, nb[k].L, nb[k].axis, nb[k].side, b, l, h);
+        lo = lo > l ? lo : l;
+        hi = hi < h ? hi : h;
+      }
+    if (lo > hi) link_interval(nb[first].p, nb[first].L, nb[first].axis, nb[first].side, b, lo, hi);
+    out[b] = clampf(p0[b], lo, hi);
+  }
+  return out;
+}
+
+/// Propagation rule for a non-FIXED element e. Returns true when it moved (t_out finite).
+HPCM_HD inline bool propagate_element(Index e, Vec3 p0, const Neighbour* nb, int count, float& t_out, Vec3& p_out) {
+  float cand[6];
+  int nc = 0;
+  for (int k = 0; k < count; ++k)
+    if (nb[k].t < kInf) {
+      const float c = nb[k].t + nb[k].L.w;
+      int j = nc++;
+      while (j > 0 && cand[j - 1] > c) {
+        cand[j] = cand[j - 1];
+        --j;
+      }
+      cand[j] = c;
+    }
+  for (int i = 0; i < nc; ++i) {
+    if (i > 0 && cand[i] == cand[i - 1]) continue;
+    const float c = cand[i];
+    unsigned mask = 0;
+    for (int k = 0; k < count; ++k)
+      if (key_less(nb[k].t, nb[k].idx, c, e)) mask |= 1u << k;
+    const Vec3 p = clamp_into_boxes(p0, nb, count, mask);
+    if (!(p == p0)) {
+      t_out = c;
+      p_out = p;
+      return true;
+    }
+  }
+  t_out = kInf;
+  p_out = p0;
+  return false;
+}
+
+/// Relaxation rule: weighted average of the neighbours' proposals p_n + X0_e - X0_n with
+/// weight 1/(tau_n + 1e-4), then clamped into all neighbours' boxes (never creates a
+/// violation against the neighbours' current positions).
+HPCM_HD inline Vec3 relax_element(const Neighbour* nb, int count) {
+  float sx = 0, sy = 0, sz = 0, sw = 0;
+  for (int k = 0; k < count; ++k) {
+    const float w = 1.0f / (nb[k].tau + 1e-4f);
+    Vec3 prop = nb[k].p;
+    prop[nb[k].axis] += static_cast<float>(nb[k].side);
+    sx += w * prop.x;
+    sy += w * prop.y;
+    sz += w * prop.z;
+    sw += w;
+  }
+  const Vec3 avg{sx / sw, sy / sw, sz / sw};
+  return clamp_into_boxes(avg, nb, count, (1u << count) - 1u);
+}
+
+}  // namespace hpcm::solver
