@@ -1,5 +1,6 @@
 // hpcm info VOLUME: geometry, HU statistics, lattice size after --roi/--downsample and the
 // elements per tissue class under the current thresholds (--params).
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -23,7 +24,8 @@ void print_geometry(const char* label, const Volume& v) {
   std::printf("%-11s%dx%dx%d\n", label, v.dims.x, v.dims.y, v.dims.z);
   std::printf("%-11s%.6g x %.6g x %.6g mm\n", "spacing", v.spacing[0], v.spacing[1], v.spacing[2]);
   std::printf("%-11s%.6g, %.6g, %.6g mm (LPS, centre of voxel 0,0,0)\n", "origin", v.origin[0], v.origin[1], v.origin[2]);
-  const auto& d = v.direction;
+  std::array<double, 9> d = v.direction;
+  for (double& x : d) x += 0.0;  // no "-0"
   std::printf("%-11s[%.6g %.6g %.6g; %.6g %.6g %.6g; %.6g %.6g %.6g] (row-major, column a = index axis a)\n",
               "direction", d[0], d[1], d[2], d[3], d[4], d[5], d[6], d[7], d[8]);
 }
@@ -49,6 +51,10 @@ void register_info(CLI::App& app) {
       throw Error("--downsample " + std::to_string(src.downsample) + " is out of range: must be >= 1");
 
     const Volume full = load_volume_full(src);
+    // --roi / --downsample are checked before anything is printed.
+    const bool reduced = src.downsample > 1 || !src.roi.empty();
+    const Volume lat = reduced ? load_volume(src) : Volume{};
+    const Volume& lattice = reduced ? lat : full;
     if (!src.input.empty()) {
       std::error_code ec;
       if (std::filesystem::is_directory(src.input, ec)) {
@@ -59,7 +65,8 @@ void register_info(CLI::App& app) {
           if (uid.empty() && s.modality == "CT") uid = s.uid;
         std::printf("%-11s%s (DICOM directory, %zu series)\n", "input", src.input.c_str(), series.size());
         for (const auto& s : series)
-          std::printf("%-11s%s%s: %s, %d slices of %dx%d%s%s\n", "series", s.uid.c_str(), s.uid == uid ? " [read]" : "",
+          std::printf("%-11s%s%s: %s, %d slices of %dx%d%s%s\n", "series",
+                      s.uid.empty() ? "<empty SeriesInstanceUID>" : s.uid.c_str(), s.uid == uid ? " [read]" : "",
                       s.modality.empty() ? "?" : s.modality.c_str(), s.files, s.columns, s.rows,
                       s.description.empty() ? "" : ", ", s.description.c_str());
 #endif
@@ -79,19 +86,17 @@ void register_info(CLI::App& app) {
     }
     std::printf("%-11smin %.6g  max %.6g  mean %.6g\n", "HU", lo, hi, sum / double(full.hu.size()));
 
-    const bool reduced = src.downsample > 1 || !src.roi.empty();
-    const Volume lat = reduced ? load_volume(src) : full;
-    std::printf("%-11s%dx%dx%d = %lld elements (downsample %d, roi %s)\n", "lattice", lat.dims.x, lat.dims.y,
-                lat.dims.z, static_cast<long long>(lat.size()), src.downsample, src.roi.empty() ? "none" : src.roi.c_str());
+    std::printf("%-11s%dx%dx%d = %lld elements (downsample %d, roi %s)\n", "lattice", lattice.dims.x, lattice.dims.y,
+                lattice.dims.z, static_cast<long long>(lattice.size()), src.downsample, src.roi.empty() ? "none" : src.roi.c_str());
     if (reduced)
-      std::printf("%-11s%.6g x %.6g x %.6g mm, origin %.6g, %.6g, %.6g mm\n", "lattice", lat.spacing[0], lat.spacing[1],
-                  lat.spacing[2], lat.origin[0], lat.origin[1], lat.origin[2]);
+      std::printf("%-11s%.6g x %.6g x %.6g mm, origin %.6g, %.6g, %.6g mm\n", "lattice", lattice.spacing[0], lattice.spacing[1],
+                  lattice.spacing[2], lattice.origin[0], lattice.origin[1], lattice.origin[2]);
     long long count[kTissueCount] = {};
-    for (float h : lat.hu) ++count[static_cast<int>(p.tissue.classify(h))];
+    for (float h : lattice.hu) ++count[static_cast<int>(p.tissue.classify(h))];
     std::printf("%-11st1 %.6g  t2 %.6g  t3 %.6g (air < t1 <= skin_fat < t2 <= muscle_organ < t3 <= bone)\n",
                 "thresholds", p.tissue.t1, p.tissue.t2, p.tissue.t3);
     for (int t = 0; t < kTissueCount; ++t)
-      std::printf("  %-13s%12lld  %6.2f %%\n", tissue_name(t), count[t], 100.0 * double(count[t]) / double(lat.size()));
+      std::printf("  %-13s%12lld  %6.2f %%\n", tissue_name(t), count[t], 100.0 * double(count[t]) / double(lattice.size()));
   });
 }
 

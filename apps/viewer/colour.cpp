@@ -71,19 +71,22 @@ void slice_colours(const Model& m, Plane p, int k, const std::vector<Vec3>& pos,
       const Index i = slice_element(m, p, k, a, b);
       const auto u = static_cast<std::size_t>(i);
       Rgba c = s.base == BaseColour::Tissue ? tissue_colour(m.tissue[u]) : hu_grey(m.hu[u], s.level, s.width);
-      if (s.overlay != Overlay::None)
+      if (s.overlay != Overlay::None && (s.overlay_air || m.tissue[u] != 0))
         c = blend_overlay(c, overlay_value(m, i, pos, prev, s.overlay), s.overlay_max, s.overlay_opacity);
       out[static_cast<std::size_t>(a) + static_cast<std::size_t>(nu) * b] = c;
     }
 }
 
 float slice_overlay_max(const Model& m, Plane p, int k, const std::vector<Vec3>& pos, const std::vector<Vec3>& prev,
-                        Overlay o) {
+                        Overlay o, bool include_air) {
   if (o == Overlay::None) return 0.0f;
   const auto [nu, nv] = slice_size(m, p);
   float mx = 0.0f;
   for (int b = 0; b < nv; ++b)
-    for (int a = 0; a < nu; ++a) mx = std::max(mx, overlay_value(m, slice_element(m, p, k, a, b), pos, prev, o));
+    for (int a = 0; a < nu; ++a) {
+      const Index i = slice_element(m, p, k, a, b);
+      if (include_air || m.tissue[static_cast<std::size_t>(i)] != 0) mx = std::max(mx, overlay_value(m, i, pos, prev, o));
+    }
   return mx;
 }
 

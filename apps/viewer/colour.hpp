@@ -21,6 +21,7 @@ struct ColourSettings {
   Overlay overlay = Overlay::None;
   float overlay_max = 1.0f;      ///< value mapped to the top of the colour map (> 0)
   float overlay_opacity = 0.85f;  ///< [0, 1]
+  bool overlay_air = false;      ///< also colour air elements (they move with the lattice)
 };
 
 /// RGBA8 packed as 0xAABBGGRR (little-endian byte order R, G, B, A).
@@ -50,6 +51,6 @@ void slice_colours(const Model& m, Plane p, int k, const std::vector<Vec3>& pos,
 
 /// Largest overlay value over slice k (for the automatic colour-map range).
 float slice_overlay_max(const Model& m, Plane p, int k, const std::vector<Vec3>& pos, const std::vector<Vec3>& prev,
-                        Overlay o);
+                        Overlay o, bool include_air);
 
 }  // namespace hpcm::viewer

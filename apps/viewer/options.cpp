@@ -55,6 +55,7 @@ int parse_options(int argc, char** argv, Options& o) {
   app.add_option("--slices", slices, "Slice positions X,Y,Z (sagittal x, coronal y, axial z; -1 = automatic)");
   app.add_flag("--hide-panel", o.hide_panel, "Hide the control panel (views fill the window)");
   app.add_flag("--wire", o.wire, "Draw the mesh edges");
+  app.add_flag("--hide-tool", o.hide_tool, "Do not draw the grab tool");
   app.add_flag("--paused", o.paused, "Start paused (interactive use)");
   try {
     app.parse(argc, argv);

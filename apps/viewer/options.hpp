@@ -37,6 +37,7 @@ struct Options {
   std::array<int, 3> slices{-1, -1, -1};  ///< x (sagittal), y (coronal), z (axial); -1 auto
   bool hide_panel = false;
   bool wire = false;
+  bool hide_tool = false;            ///< do not draw the grab tool (figures, tests)
   bool paused = false;
 
   bool scripted() const { return !screenshot.empty() || !record.empty(); }

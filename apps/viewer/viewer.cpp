@@ -139,6 +139,7 @@ Viewer::Viewer(const Options& o, Session s) : opt_(o), source_(std::move(s.sourc
   if (!o.params.empty()) std::snprintf(params_path_, sizeof params_path_, "%s", o.params.c_str());
   if (!o.scenario.empty()) std::snprintf(scenario_path_, sizeof scenario_path_, "%s", o.scenario.c_str());
   load_downsample_ = o.downsample;
+  cuda_ok_ = cuda_available(&cuda_why_);
   for (int p = 0; p < kPlaneCount; ++p) views_[p].plane = static_cast<Plane>(p);
   make_simulation(std::move(s.model), s.params, s.backend);
   // Explicit slice positions (validated against the lattice).
@@ -212,7 +213,9 @@ void Viewer::default_slices() {
   const Index g = reference_centre();
   if (g >= 0) c = m.coords(g);
   views_[static_cast<int>(Plane::Axial)].slice = c.z;
-  views_[static_cast<int>(Plane::Coronal)].slice = c.y;
+  // Coronal through the body centre: the paper pull is along y, so a coronal cut through the
+  // grab point would show only out-of-plane motion.
+  views_[static_cast<int>(Plane::Coronal)].slice = m.dims.y / 2;
   views_[static_cast<int>(Plane::Sagittal)].slice = c.x;
 }
 
@@ -278,14 +281,11 @@ void Viewer::apply_params(bool force) {
   param_error_.clear();
   params_pending_ = false;
   try {
-    if (edit_.solver.brick_size != sim_->params().solver.brick_size) {
-      // The brick layout is fixed when the backend loads the model: rebuild the simulation.
-      Model m = sim_->model();
-      make_simulation(std::move(m), edit_, backend_);
-      message("brick size changed: simulation rebuilt (state reset)");
-    } else {
-      sim_->set_params(edit_);
-    }
+    // Simulation::set_params keeps the state; it rebuilds the materials (and reloads the
+    // backend) when thresholds, material points or anchors changed.
+    const bool rebuild = materials_differ(edit_, sim_->params()) || edit_.solver.anchors != sim_->params().solver.anchors;
+    sim_->set_params(edit_);
+    if (rebuild) message("materials rebuilt");
   } catch (const Error& e) {
     param_error_ = e.what();
   }
@@ -345,6 +345,7 @@ int Viewer::run() {
 int Viewer::run_script() {
   int frames = opt_.frames;
   if (frames < 0) frames = scenario_ ? scenario_->frames : 0;
+  hist_len_ = std::clamp(frames, 50, 2000);  // the plots span the whole scripted run
   // Two frames without stepping let ImGui settle its window sizes.
   frame(0, false, nullptr);
   frame(0, false, nullptr);
@@ -506,7 +507,7 @@ void Viewer::update_meshes() {
     if (!v.visible) continue;
     v.slice = std::clamp(v.slice, 0, slice_count(m, v.plane) - 1);
     slice_positions(m, v.plane, v.slice, pos, v.verts);
-    v.overlay_seen = slice_overlay_max(m, v.plane, v.slice, pos, prev_pos_, colour_.overlay);
+    v.overlay_seen = slice_overlay_max(m, v.plane, v.slice, pos, prev_pos_, colour_.overlay, colour_.overlay_air);
     seen = std::max(seen, v.overlay_seen);
   }
   if (auto_overlay_ && colour_.overlay != Overlay::None) {
@@ -641,7 +642,7 @@ void Viewer::draw_view_overlays() {
       dl->AddLine(ImVec2(pa.x, pa.y), ImVec2(pb.x, pb.y), kPlaneColour[q] & IM_COL32(255, 255, 255, 110), 1.0f);
     }
     // The grab tool.
-    if (tool_.shown) {
+    if (tool_.shown && !opt_.hide_tool) {
       const float sp = 0.5f * float(m.spacing[ax.u] + m.spacing[ax.v]);
       const float rpx = std::max(3.0f, tool_.radius * sp * v.xf.zoom);
       const Vec2f c = v.xf.to_pixel(to_display(v.plane, m.spacing, tool_.pos));
@@ -783,8 +784,8 @@ void Viewer::draw_panel() {
   }
 
   // --- backend ---
-  std::string why;
-  if (cuda_available(&why)) {
+  const std::string& why = cuda_why_;
+  if (cuda_ok_) {
     int b = backend_ == BackendKind::Cuda ? 1 : 0;
     if (ImGui::Combo("backend", &b, "cpu\0cuda\0")) {
       const BackendKind k = b ? BackendKind::Cuda : BackendKind::Cpu;
@@ -799,7 +800,9 @@ void Viewer::draw_panel() {
       }
     }
   } else {
-    ImGui::TextDisabled("backend: cpu (CUDA: %s)", why.empty() ? "not available" : why.c_str());
+    ImGui::PushStyleColor(ImGuiCol_Text, ImGui::GetStyleColorVec4(ImGuiCol_TextDisabled));
+    ImGui::TextWrapped("backend: cpu (CUDA: %s)", why.empty() ? "not available" : why.c_str());
+    ImGui::PopStyleColor();
   }
 
   if (ImGui::CollapsingHeader("Views", ImGuiTreeNodeFlags_DefaultOpen)) {
@@ -823,6 +826,7 @@ void Viewer::draw_panel() {
       if (!auto_overlay_)
         ImGui::DragFloat("overlay max", &colour_.overlay_max, 0.01f, 1e-4f, 100.0f, "%.4f", ImGuiSliderFlags_AlwaysClamp | ImGuiSliderFlags_Logarithmic);
       ImGui::SliderFloat("opacity", &colour_.overlay_opacity, 0.0f, 1.0f, "%.2f", ImGuiSliderFlags_AlwaysClamp);
+      ImGui::Checkbox("overlay on air", &colour_.overlay_air);
     }
     ImGui::Checkbox("mesh edges (w)", &wire_);
     for (int p = 0; p < kPlaneCount; ++p) {
@@ -1104,6 +1108,7 @@ void Viewer::write_report(const std::string& path, int image_w, int image_h) con
     if (tool_.shown) {
       const Vec2f q = v.xf.to_pixel(to_display(v.plane, m.spacing, tool_.pos));
       r << "tool_px " << plane_name(v.plane) << " " << q.x * sx << " " << q.y * sy << "\n";
+      r << "tool_radius_px " << plane_name(v.plane) << " " << std::max(3.0f * sx, tool_.radius * cell) << "\n";
     }
   }
   std::ofstream f(path);

@@ -112,6 +112,8 @@ class Viewer {
   std::string param_error_;
   std::unique_ptr<Simulation> sim_;
   BackendKind backend_ = BackendKind::Cpu;
+  bool cuda_ok_ = false;
+  std::string cuda_why_;
   std::optional<Scenario> scenario_;
   std::unique_ptr<ScenarioPlayer> player_;
   bool scenario_active_ = false;

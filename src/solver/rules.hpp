@@ -17,6 +17,9 @@
 namespace hpcm::solver {
 
 inline constexpr float kInf = __builtin_huge_valf();
+/// Relative gap below which two box limits count as touching (a few float ulps): tight links
+/// produce boxes that meet in a point, and rounding must not turn that into a conflict.
+inline constexpr float kGapTolerance = 4.0f * 1.1920929e-7f;
 
 /// One neighbour of an element as the rules see it.
 struct Neighbour {
@@ -32,7 +35,8 @@ struct Neighbour {
 HPCM_HD inline bool key_less(float ta, Index ia, float tb, Index ib) { return ta < tb || (ta == tb && ia < ib); }
 
 /// Clamps p0 into the intersection of the boxes of the neighbours in `mask` (bit k = nb[k]).
-/// Where the intersection is empty on an axis, the earliest neighbour's box (by key) is used.
+/// Where the intersection is empty on an axis, the earliest neighbour's box (by key) is used;
+/// a gap of a few ulps (rounding of boxes that touch) takes the touching point instead.
 HPCM_HD inline Vec3 clamp_into_boxes(Vec3 p0, const Neighbour* nb, int count, unsigned mask) {
   int first = -1;
   for (int k = 0; k < count; ++k)
@@ -49,7 +53,15 @@ HPCM_HD inline Vec3 clamp_into_boxes(Vec3 p0, const Neighbour* nb, int count, un
         lo = lo > l ? lo : l;
         hi = hi < h ? hi : h;
       }
-    if (lo > hi) link_interval(nb[first].p, nb[first].L, nb[first].axis, nb[first].side, b, lo, hi);
+    if (lo > hi) {
+      if (lo - hi <= kGapTolerance * (1.0f + (lo < 0 ? -lo : lo))) {
+        // Only rounding separates the boxes (tight links meet at one point): take that point.
+        out[b] = 0.5f * (lo + hi);
+        continue;
+      }
+      // Truly conflicting boxes: the earliest neighbour wins (SPEC §4).
+      link_interval(nb[first].p, nb[first].L, nb[first].axis, nb[first].side, b, lo, hi);
+    }
     out[b] = clampf(p0[b], lo, hi);
   }
   return out;

@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "hpcm/state.hpp"
+#include "solver/rules.hpp"  // kGapTolerance only: the rule itself is re-implemented here
 
 namespace hpcm::reference {
 
@@ -49,7 +50,14 @@ Vec3 clamp_against(const Vec3& p0, const Neighbour* nb, int count, const bool* u
       lo = std::max(lo, iv.lo);
       hi = std::min(hi, iv.hi);
     }
-    if (lo > hi) {  // empty intersection on this axis: the earliest neighbour's box wins
+    if (lo > hi) {
+      // Boxes that only rounding separates (tight links meeting in a point): take the
+      // touching point, as the parallel solver does (src/solver/rules.hpp, kGapTolerance).
+      if (lo - hi <= solver::kGapTolerance * (1.0f + std::fabs(lo))) {
+        out[b] = 0.5f * (lo + hi);
+        continue;
+      }
+      // Truly empty intersection on this axis: the earliest neighbour's box wins.
       const Neighbour& f = nb[earliest];
       const Interval iv = link_interval(f.L, f.axis, f.e_plus, pos[static_cast<std::size_t>(f.n)], b);
       lo = iv.lo;

@@ -12,6 +12,8 @@
 //   if pos != p0 then t_e = c, position = pos, stop. Otherwise t_e = +inf, position p0.
 //   clamp(p0, S): per axis, intersect the link boxes of S; when that intersection is empty
 //   use the box of the earliest member of S (by key); clamp p0's coordinate into it.
+//   Exception: when the gap lo - hi is within solver::kGapTolerance * (1 + |lo|) (boxes that
+//   touch in a point, separated by rounding only), the coordinate is the midpoint (lo + hi)/2.
 #include <cstdint>
 #include <limits>
 #include <vector>

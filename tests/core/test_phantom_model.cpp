@@ -1,0 +1,123 @@
+// The synthetic phantom, model building (classes, links), rest state and link metrics.
+#include <gtest/gtest.h>
+
+#include "hpcm/model.hpp"
+#include "hpcm/phantom.hpp"
+#include "hpcm/state.hpp"
+
+using namespace hpcm;
+
+namespace {
+
+TEST(Phantom, Deterministic) {
+  PhantomOptions o;
+  o.dims = {48, 40, 24};
+  const Volume a = make_phantom(o), b = make_phantom(o);
+  ASSERT_EQ(a.dims, o.dims);
+  ASSERT_EQ(a.hu.size(), a.size());
+  EXPECT_EQ(a.hu, b.hu);
+  o.seed = 2;
+  const Volume c = make_phantom(o);
+  EXPECT_NE(a.hu, c.hu);  // the seed drives the noise
+  o.noise_hu = 0;
+  const Volume n0 = make_phantom(o);
+  o.seed = 9;
+  EXPECT_EQ(n0.hu, make_phantom(o).hu);  // without noise the seed does not matter
+}
+
+TEST(Phantom, FourNonEmptyClassesAndAnteriorAir) {
+  PhantomOptions o;
+  o.dims = {64, 64, 32};
+  const Volume v = make_phantom(o);
+  const Model m = build_model(v, Params{});
+  for (int t = 0; t < kTissueCount; ++t) EXPECT_GT(m.class_count[t], 0) << tissue_name(t);
+  Index total = 0;
+  for (Index c : m.class_count) total += c;
+  EXPECT_EQ(total, m.size());
+  // Air in front of the body (anterior = -y), then the body surface on the paper's line.
+  EXPECT_LT(v.at(32, 0, 16), -900.0f);
+  const Index g = paper_grab_centre(m);
+  const Int3 c = m.coords(g);
+  EXPECT_EQ(c.x, 32);
+  EXPECT_EQ(c.z, 16);
+  EXPECT_GT(c.y, 0);
+  EXPECT_GE(m.hu[g], -500.0f);
+  EXPECT_LT(m.hu[m.index(32, c.y - 1, 16)], -500.0f);
+  for (float h : v.hu) ASSERT_TRUE(std::isfinite(h));
+}
+
+TEST(Phantom, RejectsBadOptions) {
+  PhantomOptions o;
+  o.dims = {7, 64, 64};
+  EXPECT_THROW(make_phantom(o), Error);
+  o.dims = {64, 64, 64};
+  o.noise_hu = -1;
+  EXPECT_THROW(make_phantom(o), Error);
+}
+
+TEST(Model, LinksFromPairMeanAndClasses) {
+  Volume v;
+  v.dims = {3, 2, 2};
+  v.hu = {-1000, -100, 50, 700, 0, 10, 20, 30, 400, 500, -50, 1000};
+  const Params p;
+  const Model m = build_model(v, p);
+  ASSERT_EQ(m.size(), 12);
+  for (Index i = 0; i < m.size(); ++i) {
+    EXPECT_EQ(m.tissue[i], static_cast<std::uint8_t>(p.tissue.classify(v.hu[i])));
+    EXPECT_FLOAT_EQ(m.tau[i], p.material.tau(v.hu[i]));
+  }
+  const Index stride[3] = {1, 3, 6};
+  for (Index i = 0; i < m.size(); ++i) {
+    const Int3 c = m.coords(i);
+    const int cc[3] = {c.x, c.y, c.z}, d[3] = {3, 2, 2};
+    for (int a = 0; a < 3; ++a) {
+      if (cc[a] + 1 >= d[a]) continue;
+      const LinkLimits want = p.material.link(v.hu[i], v.hu[i + stride[a]]);
+      const LinkLimits got = m.link[a][i];
+      EXPECT_EQ(got.min_d, want.min_d);
+      EXPECT_EQ(got.max_d, want.max_d);
+      EXPECT_EQ(got.shear, want.shear);
+      EXPECT_EQ(got.w, want.w);
+    }
+  }
+  // Half-open classes: -1000 is skin_fat with t1 = -1000 (air is HU < t1).
+  EXPECT_EQ(m.class_count[0], 0);
+  EXPECT_EQ(m.class_count[1], 6);
+  EXPECT_EQ(m.class_count[2], 2);
+  EXPECT_EQ(m.class_count[3], 4);
+}
+
+TEST(Model, RestStateAndLinkViolation) {
+  Volume v;
+  v.dims = {4, 2, 2};
+  v.hu.assign(v.size(), 50.0f);
+  const Model m = build_model(v, Params{});
+  State s = State::rest(m);
+  for (Index i = 0; i < m.size(); ++i) {
+    EXPECT_EQ(s.pos[i], m.rest(i));
+    EXPECT_EQ(s.vel[i], Vec3{});
+    EXPECT_TRUE(std::isinf(s.time[i]));
+    EXPECT_EQ(s.flags[i], 0);
+  }
+  EXPECT_EQ(max_link_violation(m, s.pos), 0.0f);
+  const float tau = m.link[0][0].shear;
+  s.pos[m.index(1, 1, 0)].y += tau + 0.25f;  // shear on its x and z links, stretch of its one y link
+  EXPECT_NEAR(max_link_violation(m, s.pos), 0.25f, 1e-5f);
+}
+
+TEST(Model, Errors) {
+  Volume v;
+  v.dims = {0, 3, 3};
+  EXPECT_THROW(build_model(v, Params{}), Error);
+  v.dims = {3, 3, 3};
+  v.hu.assign(27, 0.0f);
+  Params p;
+  p.dynamics.alpha = 3;
+  EXPECT_THROW(build_model(v, p), Error);
+  // No body on the paper's line.
+  p = Params{};
+  v.hu.assign(27, -1000.0f);
+  EXPECT_THROW(paper_grab_centre(build_model(v, p)), Error);
+}
+
+}  // namespace
