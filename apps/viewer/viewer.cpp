@@ -70,7 +70,7 @@ void plot_series(const char* id, int series, int count, int capacity, const std:
     if (log_scale) t = (std::log10(std::max(v, 1e-12f)) - lo_log) / std::max(hi_log - lo_log, 1e-6f);
     else t = v / top;
     t = std::clamp(t, 0.0f, 1.0f);
-    return p1.y - 2 - t * (size.y - 4);
+    return p1.y - 2 - t * (size.y - 22);  // the top 18 px hold the labels
   };
   std::vector<ImVec2> pts;
   const float dx = (size.x - 4) / float(std::max(capacity - 1, 1));
@@ -85,12 +85,13 @@ void plot_series(const char* id, int series, int count, int capacity, const std:
   char buf[96];
   std::snprintf(buf, sizeof buf, "%.3g %s%s", double(top), unit, log_scale ? " (log)" : "");
   dl->AddText(ImVec2(p0.x + 4, p0.y + 2), IM_COL32(200, 200, 200, 255), buf);
-  float lx = p0.x + 4;
+  float lx = p0.x + 4 + ImGui::CalcTextSize(buf).x + 14;
   for (int s = 0; s < series; ++s) {
     const char* n = name(s);
-    dl->AddText(ImVec2(lx, p1.y - 16), colour(s), n);
+    dl->AddText(ImVec2(lx, p0.y + 2), colour(s), n);
     lx += ImGui::CalcTextSize(n).x + 10;
   }
+  dl->AddLine(ImVec2(p0.x + 1, p0.y + 18), ImVec2(p1.x - 1, p0.y + 18), IM_COL32(50, 52, 62, 255));
   ImGui::PopID();
 }
 
@@ -328,6 +329,10 @@ void Viewer::open_window() {
   io.IniFilename = nullptr;  // no imgui.ini in the working directory; the layout is fixed
   ImGui::StyleColorsDark();
   ImGui::GetStyle().WindowRounding = 0;
+  // Our key callback first: ImGui's backend chains to it. Presses are queued so a key tapped
+  // during a slow simulation frame is not lost.
+  glfwSetWindowUserPointer(win_, this);
+  glfwSetKeyCallback(win_, key_callback);
   ImGui_ImplGlfw_InitForOpenGL(win_, true);
   ImGui_ImplOpenGL3_Init("#version 330 core");
   imgui_ready_ = true;
@@ -410,7 +415,7 @@ void Viewer::message(const std::string& m, bool error) {
 // one frame
 
 void Viewer::frame(int steps, bool capture, Image* out) {
-  if (!opt_.scripted() && !running_ && !step_request_ && drag_view_ < 0 && pan_view_ < 0)
+  if (!opt_.scripted() && !running_ && step_requests_ == 0 && drag_view_ < 0 && pan_view_ < 0)
     glfwWaitEventsTimeout(0.05);  // idle: do not spin the CPU
   else
     glfwPollEvents();
@@ -421,8 +426,8 @@ void Viewer::frame(int steps, bool capture, Image* out) {
   if (!opt_.scripted()) {
     handle_input();
     steps = running_ ? steps_per_frame_ : 0;
-    if (step_request_) steps = std::max(steps, 1);
-    step_request_ = false;
+    steps += step_requests_;
+    step_requests_ = 0;
   }
   for (int i = 0; i < steps; ++i) step_once();
   if (!hide_panel_) draw_panel();
@@ -588,28 +593,40 @@ void Viewer::handle_input() {
       pan_view_ = -1;
     }
   }
-  if (!io.WantCaptureKeyboard) {
-    if (ImGui::IsKeyPressed(GLFW_KEY_SPACE, false)) running_ = !running_;
-    if (ImGui::IsKeyPressed(GLFW_KEY_N, true)) {
+  std::vector<int> keys;
+  keys.swap(key_queue_);
+  if (!io.WantCaptureKeyboard)
+    for (int k : keys) handle_key(k);
+}
+
+void Viewer::key_callback(GLFWwindow* w, int key, int, int action, int) {
+  auto* self = static_cast<Viewer*>(glfwGetWindowUserPointer(w));
+  if (!self) return;
+  if (action == GLFW_PRESS || (action == GLFW_REPEAT && key == GLFW_KEY_N)) self->key_queue_.push_back(key);
+}
+
+void Viewer::handle_key(int key) {
+  switch (key) {
+    case GLFW_KEY_SPACE: running_ = !running_; break;
+    case GLFW_KEY_N:
       running_ = false;
-      step_request_ = true;
-    }
-    if (ImGui::IsKeyPressed(GLFW_KEY_R, false)) {
+      ++step_requests_;
+      break;
+    case GLFW_KEY_R:
       reset();
       message("reset to rest");
-    }
-    if (ImGui::IsKeyPressed(GLFW_KEY_S, false)) screenshot_request_ = true;
-    if (ImGui::IsKeyPressed(GLFW_KEY_1, false)) set_mode(DampingMode::None);
-    if (ImGui::IsKeyPressed(GLFW_KEY_2, false)) set_mode(DampingMode::Simple);
-    if (ImGui::IsKeyPressed(GLFW_KEY_3, false)) set_mode(DampingMode::Viscoelastic);
-    if (ImGui::IsKeyPressed(GLFW_KEY_F, false)) fit_views();
-    if (ImGui::IsKeyPressed(GLFW_KEY_T, false))
-      colour_.base = colour_.base == BaseColour::Tissue ? BaseColour::HuWindow : BaseColour::Tissue;
-    if (ImGui::IsKeyPressed(GLFW_KEY_O, false))
-      colour_.overlay = static_cast<Overlay>((static_cast<int>(colour_.overlay) + 1) % 3);
-    if (ImGui::IsKeyPressed(GLFW_KEY_W, false)) wire_ = !wire_;
-    if (ImGui::IsKeyPressed(GLFW_KEY_H, false)) hide_panel_ = !hide_panel_;
-    if (ImGui::IsKeyPressed(GLFW_KEY_ESCAPE, false)) glfwSetWindowShouldClose(win_, GLFW_TRUE);
+      break;
+    case GLFW_KEY_S: screenshot_request_ = true; break;
+    case GLFW_KEY_1: set_mode(DampingMode::None); break;
+    case GLFW_KEY_2: set_mode(DampingMode::Simple); break;
+    case GLFW_KEY_3: set_mode(DampingMode::Viscoelastic); break;
+    case GLFW_KEY_F: fit_views(); break;
+    case GLFW_KEY_T: colour_.base = colour_.base == BaseColour::Tissue ? BaseColour::HuWindow : BaseColour::Tissue; break;
+    case GLFW_KEY_O: colour_.overlay = static_cast<Overlay>((static_cast<int>(colour_.overlay) + 1) % 3); break;
+    case GLFW_KEY_W: wire_ = !wire_; break;
+    case GLFW_KEY_H: hide_panel_ = !hide_panel_; break;
+    case GLFW_KEY_ESCAPE: glfwSetWindowShouldClose(win_, GLFW_TRUE); break;
+    default: break;
   }
 }
 
@@ -680,9 +697,10 @@ void Viewer::draw_view_overlays() {
     dl->AddText(ImVec2(0.5f * (r0.x + r1.x) - 4, r0.y + 20), lc, letters[p][2]);
     dl->AddText(ImVec2(0.5f * (r0.x + r1.x) - 4, r1.y - 18), lc, letters[p][3]);
     if (p == static_cast<int>(Plane::Axial) || (layout_ != Layout::All && !bar_drawn)) {
-      std::snprintf(buf, sizeof buf, "frame %d  %s  %s", sim_->frame(), damping_mode_name(sim_->params().dynamics.mode),
-                    last_.deform ? "deform" : "idle");
-      dl->AddText(ImVec2(r0.x + 6, r1.y - 18), IM_COL32(220, 220, 220, 230), buf);
+      const DampingMode dm = sim_->params().dynamics.mode;
+      std::snprintf(buf, sizeof buf, "frame %d  %c  %s", sim_->frame(),
+                    dm == DampingMode::None ? 'A' : dm == DampingMode::Simple ? 'B' : 'C', last_.deform ? "deform" : "idle");
+      dl->AddText(ImVec2(r0.x + 6, r0.y + 20), IM_COL32(220, 220, 220, 230), buf);
     }
     // Colour bar of the overlay.
     if (colour_.overlay != Overlay::None && !bar_drawn) {
@@ -769,7 +787,7 @@ void Viewer::draw_panel() {
   ImGui::SameLine();
   if (ImGui::Button("Step (n)")) {
     running_ = false;
-    step_request_ = true;
+    ++step_requests_;
   }
   ImGui::SameLine();
   if (ImGui::Button("Reset (r)")) reset();

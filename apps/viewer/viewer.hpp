@@ -99,6 +99,8 @@ class Viewer {
   void draw_view_overlays();
   void fit_views();
   int view_at(Vec2f px) const;
+  void handle_key(int key);
+  static void key_callback(GLFWwindow* w, int key, int scancode, int action, int mods);
   void message(const std::string& m, bool error = false);
   void save_screenshot(const Image& img, const std::string& path);
   void write_report(const std::string& path, int image_w, int image_h) const;
@@ -139,7 +141,8 @@ class Viewer {
   bool wire_ = false;
 
   bool running_ = true;
-  bool step_request_ = false;
+  std::vector<int> key_queue_;  ///< key presses since the last frame (none is lost in slow frames)
+  int step_requests_ = 0;  ///< single frames asked for with n (each press one frame)
   bool screenshot_request_ = false;
   int steps_per_frame_ = 1;
   int shot_counter_ = 0;

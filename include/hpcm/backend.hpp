@@ -29,6 +29,19 @@ struct SpeedStats {
   Index moved = 0;        ///< elements with speed > 0
 };
 
+/// Device-side figures for benchmarks (hpcm bench). `available` is false on the CPU backend.
+struct DeviceProbe {
+  bool available = false;
+  std::string device;              ///< device name and compute capability
+  std::size_t device_bytes = 0;    ///< device memory the backend holds (before the probe)
+  double layer_ms = 0;             ///< one fused velocity-layer pass over every element (median)
+  double layer_bytes = 0;          ///< bytes that pass reads + writes
+  double copy_ms = 0;              ///< one device-to-device copy of the positions (median)
+  double copy_bytes = 0;           ///< bytes the copy reads + writes
+  double layer_gbs() const { return layer_ms > 0 ? layer_bytes / (layer_ms * 1e6) : 0; }
+  double copy_gbs() const { return copy_ms > 0 ? copy_bytes / (copy_ms * 1e6) : 0; }
+};
+
 enum class BackendKind { Cpu, Cuda };
 const char* backend_name(BackendKind k);
 BackendKind parse_backend(const std::string& s, const std::string& what);
@@ -62,6 +75,11 @@ class Backend {
   /// current frame (CPU: steady clock; CUDA: events).
   virtual void mark(int slot) = 0;
   virtual double elapsed_ms(int from_slot, int to_slot) = 0;
+
+  /// Benchmark probe: times `reps` dense passes of the velocity layer over every element and
+  /// as many device-to-device copies of the positions, in the same run. The dense passes
+  /// advance the state (call it at the end of a benchmark). CPU: returns available = false.
+  virtual DeviceProbe probe(int /*reps*/) { return {}; }
 
   virtual void download(State& s) = 0;
   virtual void download_positions(std::vector<Vec3>& pos) = 0;

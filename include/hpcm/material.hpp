@@ -25,7 +25,7 @@ HPCM_HD inline LinkLimits limits_from_tau(float tau, float w) {
 
 struct MaterialTable {
   /// Defaults: air, fat, muscle/organ, bone (SPEC §3 table).
-  std::vector<MaterialPoint> points{{-1000.f, 0.5f, 1.0f}, {-100.f, 0.3f, 0.6f}, {50.f, 0.15f, 0.3f}, {700.f, 0.005f, 0.02f}};
+  std::vector<MaterialPoint> points{{-1000.f, 0.5f, 1.0f}, {-100.f, 0.35f, 0.6f}, {50.f, 0.22f, 0.3f}, {700.f, 0.005f, 0.02f}};
 
   /// Throws hpcm::Error: at least 2 points, HU finite and strictly increasing,
   /// tau in (0, 1], w in (0, 100].

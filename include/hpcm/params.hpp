@@ -22,7 +22,8 @@ struct SolverParams {
   int brick_size = 8;              ///< 4, 8 or 16 (CPU bricks for sparse work)
   int relax_sweeps = 8;            ///< K, [0, 256]
   float relax_threshold = 1e-4f;   ///< [0, 1) lattice units: smaller corrections are skipped
-  AnchorMode anchors = AnchorMode::None;
+  float relax_omega = 1.7f;        ///< over-relaxation of each step, [1, 1.95] (1 = Gauss-Seidel)
+  AnchorMode anchors = AnchorMode::Bone;
   int max_propagation_sweeps = 100000;  ///< safety cap, [1, 10^7]
   void validate() const;
   friend bool operator==(const SolverParams&, const SolverParams&) = default;
@@ -30,10 +31,10 @@ struct SolverParams {
 
 struct DynamicsParams {
   DampingMode mode = DampingMode::Viscoelastic;
-  float alpha = 0.85f;                       ///< simple damping, [0, 1]
-  float b0 = 0.15f;                          ///< viscoelastic constant term, [0, 1]
-  PerTissue b1{0.0f, 0.5f, 0.5f, 0.5f};      ///< viscoelastic displacement term, [0, 1]; air 0
-  PerTissue inverse_mass{1.0f, 1.0f, 0.15f, 0.0f};  ///< >= 0, at least one > 0
+  float alpha = 0.95f;                       ///< simple damping, [0, 1]
+  float b0 = 0.05f;                          ///< viscoelastic constant term, [0, 1]
+  PerTissue b1{0.0f, 0.05f, 0.05f, 0.05f};      ///< viscoelastic displacement term, [0, 1]; air 0
+  PerTissue inverse_mass{1.0f, 1.0f, 0.05f, 0.0f};  ///< >= 0, at least one > 0
   float s_min = 0.0f, s_max = 1.0f;          ///< response-scale clamp, 0 <= s_min <= s_max <= 1
   float dead_zone = 1e-3f;                   ///< [0, 1) lattice units
   float v_max = 0.5f;                        ///< (0, 10] lattice units per frame

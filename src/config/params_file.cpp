@@ -94,6 +94,7 @@ void read_solver(Section& root, Params& p) {
   s.read("brick_size", q.brick_size);
   s.read("relax_sweeps", q.relax_sweeps);
   s.read("relax_threshold", q.relax_threshold);
+  s.read("relax_omega", q.relax_omega);
   std::string anchors;
   if (s.read("anchors", anchors)) {
     try {
@@ -211,6 +212,7 @@ std::string write_params(const Params& p, const std::string& header) {
   w.kv("brick_size = " + std::to_string(p.solver.brick_size), "4 | 8 | 16: edge of the bricks of sparse work");
   w.kv("relax_sweeps = " + std::to_string(p.solver.relax_sweeps), "[0, 256] relaxation sweeps K per frame (early exit)");
   w.kv("relax_threshold = " + fmt_float(p.solver.relax_threshold), "[0, 0.999] lattice units: smaller relaxation corrections are skipped");
+  w.kv("relax_omega = " + fmt_float(p.solver.relax_omega), "[1, 1.95] over-relaxation of each relaxation step (1 = plain Gauss-Seidel)");
   w.kv("anchors = " + quoted(anchor_mode_name(p.solver.anchors)), "\"none\" | \"bone\" | \"border\": elements held FIXED every frame");
   w.kv("max_propagation_sweeps = " + std::to_string(p.solver.max_propagation_sweeps), "[1, 10000000] safety cap on propagation sweeps per frame");
   w.raw("");

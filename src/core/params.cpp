@@ -59,6 +59,7 @@ void SolverParams::validate() const {
     throw Error("solver.brick_size = " + std::to_string(brick_size) + " must be 4, 8 or 16");
   check_range("solver.relax_sweeps", relax_sweeps, 0, 256);
   check_range("solver.relax_threshold", relax_threshold, 0.0f, 0.999f);
+  check_range("solver.relax_omega", relax_omega, 1.0f, 1.95f);
   check_range("solver.max_propagation_sweeps", max_propagation_sweeps, 1, 10000000);
 }
 

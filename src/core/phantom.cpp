@@ -45,7 +45,7 @@ float phantom_hu(double x, double y, double z, double cell) {
   const double r = std::sqrt(u * u + v * v);
   if (r > 1.0) return kAir;
   const double depth = (1.0 - r) * ay;  // inward distance, in normalised y units (exact at the poles)
-  const double skin = std::max(0.012, 1.0 * cell), fat = std::max(0.035, 2.5 * cell), muscle = std::max(0.03, 2.2 * cell);
+  const double skin = std::max(0.012, 1.0 * cell), fat = std::max(0.06, 3.0 * cell), muscle = std::max(0.03, 2.0 * cell);
   if (depth < skin) return kSkin;
   if (depth < skin + fat) return kFat;
   // Spine: vertebral body with cortical shell, posterior arch; discs at regular z.
@@ -63,7 +63,7 @@ float phantom_hu(double x, double y, double z, double cell) {
     return kMuscle;
   if (depth < skin + fat + muscle) return kMuscle;
   // Organs.
-  if (in_ellipse(x, y, sx, sy - 0.09, 0.025, 0.025)) return kAorta;
+  if (in_ellipse(x, y, sx + 0.035, sy - 0.085, 0.022, 0.022)) return kAorta;  // left of the midline
   if (in_ellipsoid(x, y, z, 0.30, 0.48, 0.78, 0.17, 0.16, 0.35)) return kLiver;            // patient right
   if (in_ellipsoid(x, y, z, 0.73, 0.58, 0.78, 0.08, 0.08, 0.22)) return kSpleen;           // patient left
   if (in_ellipsoid(x, y, z, 0.36, 0.68, 0.55, 0.06, 0.08, 0.16) ||
@@ -72,7 +72,8 @@ float phantom_hu(double x, double y, double z, double cell) {
   // Bowel loops with gas pockets in the lower and anterior abdomen.
   const double bz = z * 7.0, bx = x * 11.0, by = y * 13.0;
   const double loop = std::sin(bx + 1.3 * std::sin(bz)) * std::sin(by + 0.7 * std::cos(bx)) * std::cos(bz + by);
-  if (y < 0.62 && z < 0.75) {
+  // Retroperitoneal fat in front of the spine; bowel loops in front of that.
+  if (y < 0.55 && z < 0.75) {
     if (loop > 0.55) return kGas;
     if (loop > -0.15) return kBowel;
   }

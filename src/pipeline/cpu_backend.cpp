@@ -9,7 +9,8 @@ void CpuBackend::load(const Model& m, const Params& p, const State& s) {
   pos_ = s.pos;
   pre_ = s.pos;  // invariant between frames: X- == X
   vel_ = s.vel;
-  time_ = s.time;
+  // A new wave starts from scratch: stale times of an earlier wave would be read as final.
+  time_.assign(s.pos.size(), solver::kInf);
   flags_ = s.flags;
   fixed_.clear();
   targets_.clear();
@@ -59,7 +60,7 @@ PropagateStats CpuBackend::propagate() {
 }
 
 RelaxStats CpuBackend::relax(int sweeps) {
-  RelaxStats st = chainmail_.relax(*m_, pos_, time_, flags_, sweeps, p_.solver.relax_threshold);
+  RelaxStats st = chainmail_.relax(*m_, pos_, time_, flags_, sweeps, p_.solver.relax_threshold, p_.solver.relax_omega);
   active_ = std::max(active_, chainmail_.last_active_bricks());
   return st;
 }

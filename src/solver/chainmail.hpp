@@ -1,7 +1,16 @@
 #pragma once
-// HP-ChainMail on the CPU (SPEC §4): brick-sparse timestamped propagation (Jacobi sweeps,
-// double-buffered, OpenMP over bricks) and red-black Gauss-Seidel relaxation. Knows nothing
-// about velocities: it moves positions and reports which bricks it touched.
+// HP-ChainMail on the CPU (SPEC §4): timestamped propagation processed in time buckets
+// (label-setting, exact, OpenMP inside large buckets) and brick-sparse red-black Gauss-Seidel
+// relaxation. Knows nothing about velocities: it moves positions and reports which bricks it
+// touched.
+//
+// Why buckets and not plain Jacobi sweeps: an element's time depends on whether it moved,
+// and whether it moved depends on which neighbours are earlier, so times are not monotone
+// during Jacobi sweeps and the sweeps can cycle forever (seen on real CT). Every link has
+// w >= delta (the smallest link penalty), so all candidate times in the bucket
+// [k*delta, (k+1)*delta) come from elements already final in earlier buckets: each bucket is
+// decided by a short, provably finite Jacobi iteration, and the result is exactly the
+// Dijkstra-order result (docs/solver.md).
 #include <vector>
 
 #include "hpcm/backend.hpp"
@@ -24,7 +33,7 @@ class ChainMailCpu {
   /// Up to `sweeps` red-black sweeps over hot bricks and their neighbours; corrections
   /// smaller than `threshold` are skipped; early exit when no correction remains.
   RelaxStats relax(const Model& m, std::vector<Vec3>& pos, const std::vector<float>& time,
-                   const std::vector<std::uint8_t>& flags, int sweeps, float threshold);
+                   const std::vector<std::uint8_t>& flags, int sweeps, float threshold, float omega);
 
   const BrickGrid& grid() const { return grid_; }
   /// Bricks whose positions changed this frame (propagation or relaxation).
@@ -39,8 +48,13 @@ class ChainMailCpu {
 
  private:
   BrickGrid grid_;
-  std::vector<std::uint8_t> touched_, hot_, changed_, wave_;
+  std::vector<std::uint8_t> touched_, hot_, changed_;
   std::vector<Index> list_;
+  // propagation
+  float delta_ = 0;                          ///< bucket width: smallest link w of the model
+  std::vector<std::uint8_t> final_;          ///< element decided in this wave
+  std::vector<Index> reached_;               ///< elements whose time was set in the last wave
+  std::vector<std::vector<Index>> buckets_;  ///< pending elements per time bucket
   std::vector<float> scratch_t_;
   std::vector<Vec3> scratch_p_;
   Index last_active_ = 0;

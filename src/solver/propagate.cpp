@@ -1,4 +1,5 @@
 #include <algorithm>
+#include <cmath>
 #include <limits>
 
 #include "solver/chainmail.hpp"
@@ -10,7 +11,21 @@ void ChainMailCpu::init(const Model& m, int brick_size) {
   touched_.assign(static_cast<std::size_t>(grid_.count), 0);
   hot_.assign(static_cast<std::size_t>(grid_.count), 0);
   changed_.assign(static_cast<std::size_t>(grid_.count), 0);
-  wave_.assign(static_cast<std::size_t>(grid_.count), 0);
+  final_.assign(static_cast<std::size_t>(m.size()), 0);
+  reached_.clear();
+  buckets_.clear();
+  // Bucket width: the smallest time penalty of any link (w > 0 is validated).
+  float d = std::numeric_limits<float>::infinity();
+  const int dims[3] = {m.dims.x, m.dims.y, m.dims.z};
+  for (int a = 0; a < 3; ++a) {
+    if (dims[a] < 2) continue;
+    for (Index i = 0; i < m.size(); ++i) {
+      const Int3 c = m.coords(i);
+      const int ca[3] = {c.x, c.y, c.z};
+      if (ca[a] + 1 < dims[a]) d = std::min(d, m.link[a][i].w);
+    }
+  }
+  delta_ = std::isfinite(d) ? d : 1.0f;
 }
 
 int ChainMailCpu::gather(const Model& m, const Vec3* pos, const float* time, int x, int y, int z, Index i, Neighbour* nb) {
@@ -30,111 +45,143 @@ int ChainMailCpu::gather(const Model& m, const Vec3* pos, const float* time, int
   return c;
 }
 
+namespace {
+
+/// The propagation rule restricted to the candidates of one bucket: candidate times below
+/// the bucket were decided in earlier buckets (their upstream sets can no longer change),
+/// candidates above it belong to later buckets.
+template <class BucketOf>
+bool propagate_in_bucket(Index e, Vec3 p0, const Neighbour* nb, int count, std::size_t bucket, BucketOf bucket_of,
+                         float& t_out, Vec3& p_out) {
+  float cand[6];
+  int nc = 0;
+  for (int k = 0; k < count; ++k)
+    if (nb[k].t < kInf) {
+      const float c = nb[k].t + nb[k].L.w;
+      if (bucket_of(c) != bucket) continue;  // the same test that filed it in this bucket
+      int j = nc++;
+      while (j > 0 && cand[j - 1] > c) {
+        cand[j] = cand[j - 1];
+        --j;
+      }
+      cand[j] = c;
+    }
+  for (int i = 0; i < nc; ++i) {
+    if (i > 0 && cand[i] == cand[i - 1]) continue;
+    const float c = cand[i];
+    unsigned mask = 0;
+    for (int k = 0; k < count; ++k)
+      if (key_less(nb[k].t, nb[k].idx, c, e)) mask |= 1u << k;
+    const Vec3 p = clamp_into_boxes(p0, nb, count, mask);
+    if (!(p == p0)) {
+      t_out = c;
+      p_out = p;
+      return true;
+    }
+  }
+  t_out = kInf;
+  p_out = p0;
+  return false;
+}
+
+}  // namespace
+
 PropagateStats ChainMailCpu::propagate(const Model& m, std::vector<Vec3>& pos, const std::vector<Vec3>& pre,
                                        std::vector<float>& time, const std::vector<std::uint8_t>& flags,
                                        const std::vector<Index>& fixed, int max_sweeps) {
   PropagateStats st;
-  const Index B3 = static_cast<Index>(grid_.size) * grid_.size * grid_.size;
-  // Forget the previous wave: times back to +inf where it went.
-  BrickGrid::to_list(wave_, list_);
-#pragma omp parallel for schedule(dynamic, 1)
-  for (std::size_t k = 0; k < list_.size(); ++k) {
-    Int3 lo, hi;
-    grid_.range(list_[k], lo, hi);
-    for (int z = lo.z; z < hi.z; ++z)
-      for (int y = lo.y; y < hi.y; ++y)
-        for (int x = lo.x; x < hi.x; ++x) time[m.index(x, y, z)] = kInf;
+  // Forget the previous wave.
+  for (Index i : reached_) {
+    time[i] = kInf;
+    final_[i] = 0;
   }
-  std::fill(wave_.begin(), wave_.end(), 0);
-  std::fill(changed_.begin(), changed_.end(), 0);
+  reached_.clear();
+  for (auto& b : buckets_) b.clear();
+  const int nx = m.dims.x, ny = m.dims.y, nz = m.dims.z;
+  const Index sy = nx, sz = static_cast<Index>(nx) * ny;
+  const double delta = delta_;
+  auto bucket_of = [&](float t) { return static_cast<std::size_t>(std::floor(t / delta)); };
+  auto push_neighbours = [&](Index i, float t) {
+    const Int3 c = m.coords(i);
+    auto push = [&](Index n, float w) {
+      if (final_[n] || (flags[n] & kFixed)) return;
+      const std::size_t b = bucket_of(t + w);
+      if (b >= buckets_.size()) buckets_.resize(b + 1);
+      buckets_[b].push_back(n);
+    };
+    if (c.x > 0) push(i - 1, m.link[0][i - 1].w);
+    if (c.x + 1 < nx) push(i + 1, m.link[0][i].w);
+    if (c.y > 0) push(i - sy, m.link[1][i - sy].w);
+    if (c.y + 1 < ny) push(i + sy, m.link[1][i].w);
+    if (c.z > 0) push(i - sz, m.link[2][i - sz].w);
+    if (c.z + 1 < nz) push(i + sz, m.link[2][i].w);
+  };
   for (Index f : fixed) {
     time[f] = 0.0f;
-    const Index b = grid_.brick_of_index(f);
-    changed_[b] = 1;
-    wave_[b] = 1;
-    touched_[b] = 1;
+    final_[f] = 1;
+    reached_.push_back(f);
+    touched_[grid_.brick_of_index(f)] = 1;
+    hot_[grid_.brick_of_index(f)] = 1;
   }
-  Index active_total = 0;
-  int sweep = 0;
-  for (;;) {
-    grid_.dilate_to_list(changed_, list_);
-    if (list_.empty()) break;
-    if (sweep >= max_sweeps) {
-      st.converged = false;
-      break;
+  for (Index f : fixed) push_neighbours(f, 0.0f);
+
+  std::vector<Index> list;
+  int iterations = 0;
+  for (std::size_t k = 0; k < buckets_.size(); ++k) {
+    if (buckets_[k].empty()) continue;
+    list.swap(buckets_[k]);
+    buckets_[k].clear();
+    std::sort(list.begin(), list.end());
+    list.erase(std::unique(list.begin(), list.end()), list.end());
+    list.erase(std::remove_if(list.begin(), list.end(), [&](Index e) { return final_[e] != 0; }), list.end());
+    if (list.empty()) continue;
+    const std::size_t n = list.size();
+    if (scratch_t_.size() < n) {
+      scratch_t_.resize(n);
+      scratch_p_.resize(n);
     }
-    ++sweep;
-    active_total = std::max<Index>(active_total, static_cast<Index>(list_.size()));
-    const std::size_t nlist = list_.size();
-    if (scratch_t_.size() < nlist * B3) {
-      scratch_t_.resize(nlist * B3);
-      scratch_p_.resize(nlist * B3);
-    }
-    std::fill(changed_.begin(), changed_.end(), 0);
-    // Jacobi: compute every element of the active bricks from the current buffers ...
-#pragma omp parallel for schedule(dynamic, 1)
-    for (std::size_t k = 0; k < nlist; ++k) {
-      Int3 lo, hi;
-      grid_.range(list_[k], lo, hi);
-      float* st_t = scratch_t_.data() + k * B3;
-      Vec3* st_p = scratch_p_.data() + k * B3;
-      Neighbour nb[6];
+    // Jacobi inside the bucket: tentative times live in time[]/pos[] of the listed elements.
+    // Dependencies inside a bucket go strictly down in candidate time, which is fixed by
+    // earlier buckets, so this settles in at most (chain length + 1) passes.
+    for (int pass = 0;; ++pass) {
       bool any = false;
-      Index s = 0;
-      for (int z = lo.z; z < hi.z; ++z)
-        for (int y = lo.y; y < hi.y; ++y)
-          for (int x = lo.x; x < hi.x; ++x, ++s) {
-            const Index i = m.index(x, y, z);
-            if (flags[i] & kFixed) {
-              st_t[s] = time[i];
-              st_p[s] = pos[i];
-              continue;
-            }
-            const int c = gather(m, pos.data(), time.data(), x, y, z, i, nb);
-            propagate_element(i, pre[i], nb, c, st_t[s], st_p[s]);
-            if (!(st_t[s] == time[i]) || !(st_p[s] == pos[i])) any = true;
-          }
-      changed_[list_[k]] = any;
+#pragma omp parallel for schedule(static) reduction(|| : any) if (n > 2048)
+      for (std::size_t j = 0; j < n; ++j) {
+        const Index e = list[j];
+        const Int3 c = m.coords(e);
+        Neighbour nb[6];
+        const int cnt = gather(m, pos.data(), time.data(), c.x, c.y, c.z, e, nb);
+        propagate_in_bucket(e, pre[e], nb, cnt, k, bucket_of, scratch_t_[j], scratch_p_[j]);
+        if (!(scratch_t_[j] == time[e]) || !(scratch_p_[j] == pos[e])) any = true;
+      }
+      ++iterations;
+      if (!any) break;
+      if (pass >= max_sweeps) {
+        st.converged = false;
+        break;
+      }
+      for (std::size_t j = 0; j < n; ++j) {
+        time[list[j]] = scratch_t_[j];
+        pos[list[j]] = scratch_p_[j];
+      }
     }
-    // ... then publish the changed bricks.
-#pragma omp parallel for schedule(dynamic, 1)
-    for (std::size_t k = 0; k < nlist; ++k) {
-      const Index b = list_[k];
-      if (!changed_[b]) continue;
-      wave_[b] = 1;
-      touched_[b] = 1;
-      hot_[b] = 1;
-      Int3 lo, hi;
-      grid_.range(b, lo, hi);
-      const float* st_t = scratch_t_.data() + k * B3;
-      const Vec3* st_p = scratch_p_.data() + k * B3;
-      Index s = 0;
-      for (int z = lo.z; z < hi.z; ++z)
-        for (int y = lo.y; y < hi.y; ++y)
-          for (int x = lo.x; x < hi.x; ++x, ++s) {
-            const Index i = m.index(x, y, z);
-            time[i] = st_t[s];
-            pos[i] = st_p[s];
-          }
+    for (Index e : list) {
+      if (time[e] < kInf) {
+        final_[e] = 1;
+        reached_.push_back(e);
+        ++st.reached;
+        const Index b = grid_.brick_of_index(e);
+        touched_[b] = 1;
+        hot_[b] = 1;
+      }
     }
+    for (Index e : list)
+      if (final_[e]) push_neighbours(e, time[e]);
+    list.clear();
   }
-  st.sweeps = sweep;
-  // Count the elements the wave reached.
-  BrickGrid::to_list(wave_, list_);
-  Index reached = 0;
-#pragma omp parallel for schedule(dynamic, 1) reduction(+ : reached)
-  for (std::size_t k = 0; k < list_.size(); ++k) {
-    Int3 lo, hi;
-    grid_.range(list_[k], lo, hi);
-    for (int z = lo.z; z < hi.z; ++z)
-      for (int y = lo.y; y < hi.y; ++y)
-        for (int x = lo.x; x < hi.x; ++x) {
-          const Index i = m.index(x, y, z);
-          if (!(flags[i] & kFixed) && time[i] < kInf) ++reached;
-        }
-  }
-  st.reached = reached;
-  last_active_ = active_total;
+  st.sweeps = iterations;
+  last_active_ = 0;
+  for (std::uint8_t t : touched_) last_active_ += t;
   return st;
 }
 

@@ -10,7 +10,7 @@ namespace hpcm::solver {
 // colour. Every link is therefore within its box after each half-sweep, whatever the thread
 // count, and the result is deterministic.
 RelaxStats ChainMailCpu::relax(const Model& m, std::vector<Vec3>& pos, const std::vector<float>& time,
-                               const std::vector<std::uint8_t>& flags, int sweeps, float threshold) {
+                               const std::vector<std::uint8_t>& flags, int sweeps, float threshold, float omega) {
   RelaxStats st;
   Index active_max = last_active_;
   std::vector<std::uint8_t>& work = hot_;
@@ -36,7 +36,7 @@ RelaxStats ChainMailCpu::relax(const Model& m, std::vector<Vec3>& pos, const std
               if (flags[i] & kFixed) continue;
               const int c = gather(m, pos.data(), time.data(), x, y, z, i, nb);
               if (c == 0) continue;
-              const Vec3 p = relax_element(nb, c);
+              const Vec3 p = relax_element(nb, c, pos[i], omega);
               const Vec3 d = p - pos[i];
               const float corr = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
               if (!(corr >= threshold) || corr == 0.0f) continue;  // small corrections are skipped

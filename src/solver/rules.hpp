@@ -99,10 +99,12 @@ HPCM_HD inline bool propagate_element(Index e, Vec3 p0, const Neighbour* nb, int
   return false;
 }
 
-/// Relaxation rule: weighted average of the neighbours' proposals p_n + X0_e - X0_n with
+/// Relaxation rule: (over-relaxed step toward the) weighted average of the neighbours' proposals p_n + X0_e - X0_n with
 /// weight 1/(tau_n + 1e-4), then clamped into all neighbours' boxes (never creates a
 /// violation against the neighbours' current positions).
-HPCM_HD inline Vec3 relax_element(const Neighbour* nb, int count) {
+/// `omega` over-relaxes the step from the current position `cur` toward the average
+/// (successive over-relaxation; omega = 1 is plain Gauss-Seidel).
+HPCM_HD inline Vec3 relax_element(const Neighbour* nb, int count, Vec3 cur, float omega) {
   float sx = 0, sy = 0, sz = 0, sw = 0;
   for (int k = 0; k < count; ++k) {
     const float w = 1.0f / (nb[k].tau + 1e-4f);
@@ -114,7 +116,10 @@ HPCM_HD inline Vec3 relax_element(const Neighbour* nb, int count) {
     sw += w;
   }
   const Vec3 avg{sx / sw, sy / sw, sz / sw};
-  return clamp_into_boxes(avg, nb, count, (1u << count) - 1u);
+  const Vec3 target = omega == 1.0f ? avg
+                                    : Vec3{cur.x + omega * (avg.x - cur.x), cur.y + omega * (avg.y - cur.y),
+                                           cur.z + omega * (avg.z - cur.z)};
+  return clamp_into_boxes(target, nb, count, (1u << count) - 1u);
 }
 
 }  // namespace hpcm::solver

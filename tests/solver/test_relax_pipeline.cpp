@@ -30,13 +30,17 @@ Params chainmail_params(int relax_sweeps) {
   return p;
 }
 
-// Every frame of a pull on a heterogeneous lattice ends with every link inside its box.
+// Every frame of a pull on a heterogeneous lattice (a small phantom: skin, fat, muscle,
+// organs, spine) ends with every link inside its box. (On lattices of independent random HU
+// per element, neighbouring boxes of bone-stiff and air-soft links often cannot all be met
+// at once; the empty-intersection fallback then leaves violations, see docs/solver.md.)
 TEST(Relaxation, FramesEndConsistent) {
-  std::mt19937 rng(11);
-  std::uniform_real_distribution<float> hu(-1000.0f, 1000.0f);
-  Model m = build_model(test::make_volume({18, 16, 14}, [&](int, int, int) { return hu(rng); }), chainmail_params(8));
+  PhantomOptions o;
+  o.dims = {36, 36, 16};
+  const Model m = build_model(make_phantom(o), chainmail_params(8));
   Simulation sim(m, chainmail_params(8));
-  sim.grab(m.index(9, 8, 7), 1.5f);
+  const Index centre = paper_grab_centre(m);
+  sim.grab(centre, 1.5f);
   StepOptions opt;
   opt.link_violation = true;
   for (int f = 1; f <= 12; ++f) {
@@ -84,20 +88,31 @@ TEST(Relaxation, StiffBarStaysWithinItsLimits) {
 }
 
 // After release, elastic relaxation brings the lattice back to rest. Border anchors hold
-// the lattice in place (a free lattice may drift as a whole).
-constexpr int kReturnFrames = 300;  // stated bound, documented in docs/solver.md
-TEST(Relaxation, ReturnsToRestAfterRelease) {
-  Params p = chainmail_params(8);
-  p.solver.anchors = AnchorMode::Border;
-  const Model m = build_model(test::make_volume({16, 16, 16}, [](int x, int, int) { return x < 8 ? 50.0f : -100.0f; }), p);
-  Simulation sim(m, p);
-  sim.grab(m.index(8, 8, 8), 1.5f);
+// the lattice in place (a free lattice may drift as a whole). Corrections below
+// solver.relax_threshold are skipped, which leaves a residual offset of a few tens of
+// thresholds: with 1e-5 the lattice is back within 1e-3 (22 frames measured); with the
+// default 1e-4 it settles about 4e-3 from rest and then stops moving.
+constexpr int kReturnFrames = 60;  // stated bound, documented in docs/solver.md
+Model two_tissue_cube(const Params& p) {
+  return build_model(test::make_volume({16, 16, 16}, [](int x, int, int) { return x < 8 ? 50.0f : -100.0f; }), p);
+}
+void pull_and_release(Simulation& sim) {
+  sim.grab(sim.model().index(8, 8, 8), 1.5f);
   for (int f = 1; f <= 10; ++f) {
     sim.move_tool(Vec3{0.0f, -0.2f * f, 0.0f});
     sim.step();
   }
-  ASSERT_GT(max_rest_distance(m, sim.state()), 1.5f);
+  ASSERT_GT(max_rest_distance(sim.model(), sim.state()), 1.5f);
   sim.release();
+}
+
+TEST(Relaxation, ReturnsToRestAfterRelease) {
+  Params p = chainmail_params(8);
+  p.solver.anchors = AnchorMode::Border;
+  p.solver.relax_threshold = 1e-5f;
+  Simulation sim(two_tissue_cube(p), p);
+  pull_and_release(sim);
+  const Model& m = sim.model();
   int frames = 0;
   float d = max_rest_distance(m, sim.state());
   while (d >= 1e-3f && frames < kReturnFrames) {
@@ -106,8 +121,21 @@ TEST(Relaxation, ReturnsToRestAfterRelease) {
     d = max_rest_distance(m, sim.state());
   }
   EXPECT_LT(d, 1e-3f) << "still " << d << " from rest after " << frames << " frames";
-  RecordProperty("frames_to_rest", frames);
   std::printf("returned to rest (max |X - X0| < 1e-3) after %d frames\n", frames);
+}
+
+TEST(Relaxation, DefaultThresholdSettlesNearRestAndStops) {
+  Params p = chainmail_params(8);
+  p.solver.anchors = AnchorMode::Border;
+  Simulation sim(two_tissue_cube(p), p);
+  pull_and_release(sim);
+  for (int f = 0; f < 200; ++f) sim.step();
+  const Model& m = sim.model();
+  const float d = max_rest_distance(m, sim.state());
+  EXPECT_LT(d, 1e-2f);
+  const FrameReport r = sim.step();
+  EXPECT_EQ(r.moved_elements, 0) << "the lattice must come to a stop";
+  std::printf("default threshold: %g from rest after 200 frames\n", d);
 }
 
 // Bitwise identical results with 1 and with 2 threads, full pipeline (condition C).

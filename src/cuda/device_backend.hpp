@@ -1,0 +1,530 @@
+#pragma once
+// The CUDA backend's host side, written once over an executor X that owns memory, copies,
+// kernel launches and timing:
+//   - GpuExec (cuda_backend.cu): cudaMalloc, one stream, __global__ wrappers of the bodies in
+//     kernels.hpp, the relaxation sweeps replayed as a CUDA graph, CUDA events;
+//   - EmuExec (emulation.hpp): host memory and sequential loops over blocks and threads, so the
+//     test suite can check the device algorithm against the CPU backend without a GPU.
+// Plain C++ (no CUDA syntax): compiled by nvcc for the backend and by the C++ compiler for the
+// emulation test.
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <cstring>
+#include <limits>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "cuda/kernels.hpp"
+#include "hpcm/backend.hpp"
+
+namespace hpcm::gpu {
+
+/// Device-wide results copied back to the host after each stage.
+struct Ctl {
+  PropCtl prop;
+  RelaxCtl relax;
+  LayerCtl layer;
+};
+
+/// Compact links reproduce the CPU Model bit for bit when every link is
+/// limits_from_tau(tau, w(mean HU)) of the model's material; otherwise explicit limits are stored.
+inline bool compact_links_match(const Model& m, const MaterialW& mat) {
+  const Index sx[3] = {1, m.dims.x, static_cast<Index>(m.dims.x) * m.dims.y};
+  const int d[3] = {m.dims.x, m.dims.y, m.dims.z};
+  for (Index i = 0; i < m.size(); ++i) {
+    const Int3 c = m.coords(i);
+    const int ca[3] = {c.x, c.y, c.z};
+    for (int a = 0; a < 3; ++a) {
+      if (ca[a] + 1 >= d[a]) continue;
+      const LinkLimits& L = m.link[a][static_cast<std::size_t>(i)];
+      const float mean = 0.5f * (m.hu[static_cast<std::size_t>(i)] + m.hu[static_cast<std::size_t>(i + sx[a])]);
+      const LinkLimits r = limits_from_tau(L.shear, material_w(mat, mean));
+      if (std::memcmp(&r, &L, sizeof r) != 0) return false;
+    }
+  }
+  return true;
+}
+
+template <class X>
+class DeviceBackend final : public Backend {
+ public:
+  template <class... A>
+  explicit DeviceBackend(A&&... args) : x_(std::forward<A>(args)...) {}
+  ~DeviceBackend() override { free_all(); }
+  DeviceBackend(const DeviceBackend&) = delete;
+  DeviceBackend& operator=(const DeviceBackend&) = delete;
+
+  BackendKind kind() const override { return BackendKind::Cuda; }
+  X& exec() { return x_; }
+  /// True when links are rebuilt on the fly (62 bytes per element); false: explicit limits.
+  bool compact_links() const { return compact_; }
+  std::size_t device_bytes() const { return held_; }
+  /// Test hook: initial capacities of the propagation lists (pending pushes, one bucket) for the
+  /// next load(); 0 = the defaults. Small values force the grow-and-rerun path.
+  void set_initial_list_capacity(int pending, int bucket) {
+    pend_override_ = pending;
+    list_override_ = bucket;
+  }
+  /// Times a wave was rerun with larger lists since load().
+  int list_regrowths() const { return regrowths_; }
+
+  void load(const Model& m, const Params& p, const State& s) override {
+    p.validate();
+    const Index n = m.size();
+    if (static_cast<Index>(s.pos.size()) != n || static_cast<Index>(s.vel.size()) != n ||
+        static_cast<Index>(s.flags.size()) != n)
+      throw Error("CUDA backend: state size does not match the model (" + std::to_string(n) + " elements)");
+    free_all();
+    m_ = &m;
+    p_ = p;
+    k_ = dynamics::make_constants(p.dynamics, m.dims);
+    L_ = Lattice{};
+    L_.nx = m.dims.x;
+    L_.ny = m.dims.y;
+    L_.nz = m.dims.z;
+    L_.n = n;
+    L_.bs = p.solver.brick_size;
+    L_.nbx = (L_.nx + L_.bs - 1) / L_.bs;
+    L_.nby = (L_.ny + L_.bs - 1) / L_.bs;
+    L_.nbz = (L_.nz + L_.bs - 1) / L_.bs;
+    L_.nbricks = static_cast<long long>(L_.nbx) * L_.nby * L_.nbz;
+
+    // Material w(HU) for on-the-fly links.
+    const auto& pts = p.material.points;
+    compact_ = pts.size() <= static_cast<std::size_t>(kMaxMaterialPoints);
+    if (compact_) {
+      L_.mat.n = static_cast<int>(pts.size());
+      for (std::size_t k = 0; k < pts.size(); ++k) {
+        L_.mat.hu[k] = pts[k].hu;
+        L_.mat.w[k] = pts[k].w;
+      }
+      compact_ = compact_links_match(m, L_.mat);
+    }
+
+    const std::size_t N = static_cast<std::size_t>(n), NB = static_cast<std::size_t>(L_.nbricks);
+    const std::size_t N4 = (N + 3) / 4 * 4;
+    L_.pos = alloc<Vec3>(N, "positions");
+    L_.pre = alloc<Vec3>(N, "pre-ChainMail snapshot");
+    L_.vel = alloc<Vec3>(N, "velocities");
+    L_.time = alloc<float>(N, "arrival times");
+    L_.flags = alloc<std::uint8_t>(N4, "flags");
+    L_.tau = alloc<float>(N, "element tolerances");
+    L_.tissue = alloc<std::uint8_t>(N, "tissue classes");
+    if (compact_) {
+      L_.hu = alloc<float>(N, "HU");
+      for (int a = 0; a < 3; ++a) L_.ltau[a] = alloc<float>(N, "link tolerances");
+    } else {
+      for (int a = 0; a < 3; ++a) L_.link[a] = alloc<LinkLimits>(N, "link limits");
+    }
+    L_.touched = alloc<std::uint8_t>(NB, "brick flags");
+    L_.hot = alloc<std::uint8_t>(NB, "brick flags");
+    L_.changed = alloc<std::uint8_t>(NB, "brick flags");
+    L_.has_vel = alloc<std::uint8_t>(NB, "brick flags");
+    L_.wave = alloc<std::uint8_t>(NB, "brick flags");
+    save_touched_ = alloc<std::uint8_t>(NB, "brick flags");
+    save_hot_ = alloc<std::uint8_t>(NB, "brick flags");
+    relax_list_ = alloc<int>(NB, "relaxation brick list");
+    part_sum_ = alloc<float>(NB * kTissueCount, "speed partials");
+    part_max_ = alloc<float>(NB * kTissueCount, "speed partials");
+    part_moved_ = alloc<int>(NB, "speed partials");
+    ctl_ = alloc<Ctl>(1, "control block");
+    host_ctl_ = static_cast<Ctl*>(x_.host_alloc(sizeof(Ctl)));
+    std::memset(static_cast<void*>(host_ctl_), 0, sizeof(Ctl));
+    // Propagation lists: grown on overflow (the wave is then rerun from its start).
+    pend_cap_ = pend_override_ > 0 ? pend_override_ : static_cast<int>(std::max<std::size_t>(65536, N / 32));
+    list_cap_ = list_override_ > 0 ? list_override_ : static_cast<int>(std::max<std::size_t>(16384, N / 128));
+    regrowths_ = 0;
+    alloc_prop_lists();
+
+    // Upload: model, then the state (as CpuBackend::load).
+    std::vector<float> buf(N);
+    x_.upload(const_cast<float*>(L_.tau), m.tau.data(), N * sizeof(float));
+    x_.upload(const_cast<std::uint8_t*>(L_.tissue), m.tissue.data(), N);
+    if (compact_) {
+      x_.upload(const_cast<float*>(L_.hu), m.hu.data(), N * sizeof(float));
+      for (int a = 0; a < 3; ++a) {
+        for (std::size_t i = 0; i < N; ++i) buf[i] = m.link[a][i].shear;
+        x_.upload(const_cast<float*>(L_.ltau[a]), buf.data(), N * sizeof(float));
+      }
+    } else {
+      for (int a = 0; a < 3; ++a) x_.upload(const_cast<LinkLimits*>(L_.link[a]), m.link[a].data(), N * sizeof(LinkLimits));
+    }
+    x_.upload(L_.pos, s.pos.data(), N * sizeof(Vec3));
+    x_.upload(L_.pre, s.pos.data(), N * sizeof(Vec3));  // invariant between frames: X- == X
+    x_.upload(L_.vel, s.vel.data(), N * sizeof(Vec3));
+    std::fill(buf.begin(), buf.end(), solver::kInf);  // a new wave starts from scratch
+    x_.upload(L_.time, buf.data(), N * sizeof(float));
+    std::vector<std::uint8_t> fl(N4, 0);
+    for (std::size_t i = 0; i < N; ++i) fl[i] = (s.flags[i] & kFixed) ? 0 : static_cast<std::uint8_t>(s.flags[i] & ~kInternalBits);
+    x_.upload(L_.flags, fl.data(), N4);
+    // Anything that carries velocity or is off rest must be looked at by the first frame.
+    std::vector<std::uint8_t> touched(NB, 0);
+    for (Index i = 0; i < n; ++i) {
+      const std::size_t u = static_cast<std::size_t>(i);
+      if (!(s.vel[u] == Vec3{}) || !(s.pos[u] == m.rest(i))) touched[static_cast<std::size_t>(L_.brick_of_index(i))] = 1;
+    }
+    x_.upload(L_.touched, touched.data(), NB);
+    x_.upload(L_.hot, touched.data(), NB);
+    x_.zero(L_.changed, NB);
+    x_.zero(L_.has_vel, NB);
+    x_.zero(L_.wave, NB);
+    x_.zero(ctl_, sizeof(Ctl));
+
+    // Bucket width: the smallest time penalty of any link (ChainMailCpu::init).
+    float dmin = std::numeric_limits<float>::infinity();
+    const int dims[3] = {m.dims.x, m.dims.y, m.dims.z};
+    for (int a = 0; a < 3; ++a) {
+      if (dims[a] < 2) continue;
+      for (Index i = 0; i < n; ++i) {
+        const Int3 c = m.coords(i);
+        const int ca[3] = {c.x, c.y, c.z};
+        if (ca[a] + 1 < dims[a]) dmin = std::min(dmin, m.link[a][static_cast<std::size_t>(i)].w);
+      }
+    }
+    delta_ = std::isfinite(dmin) ? dmin : 1.0f;
+    fixed_.clear();
+    n_fixed_dev_ = 0;
+    active_ = 0;
+    layer_pending_ = false;
+    x_.invalidate();
+    x_.sync();
+  }
+
+  void set_params(const Params& p) override {
+    p.validate();
+    const bool bricks_changed = p.solver.brick_size != p_.solver.brick_size;
+    p_ = p;
+    k_ = dynamics::make_constants(p.dynamics, m_->dims);
+    x_.invalidate();  // the relaxation graph holds the threshold
+    if (bricks_changed) {
+      State s;
+      download(s);
+      load(*m_, p, s);
+    }
+  }
+
+  void set_fixed(const std::vector<Index>& elements, const std::vector<Vec3>& targets,
+                 const std::vector<std::uint8_t>& flags) override {
+    if (targets.size() != elements.size() || flags.size() != elements.size())
+      throw Error("set_fixed: elements, targets and flags must have the same length");
+    // Duplicates (an anchor that is also grabbed): the last occurrence wins, as on the CPU.
+    std::vector<int> idx;
+    std::vector<Vec3> tg;
+    std::vector<std::uint8_t> fl;
+    idx.reserve(elements.size());
+    if (seen_.size() != static_cast<std::size_t>(L_.n)) seen_.assign(static_cast<std::size_t>(L_.n), 0);
+    for (std::size_t k = elements.size(); k-- > 0;) {
+      const Index e = elements[k];
+      if (e < 0 || e >= L_.n) throw Error("set_fixed: element " + std::to_string(e) + " is out of range");
+      if (seen_[static_cast<std::size_t>(e)]) continue;
+      seen_[static_cast<std::size_t>(e)] = 1;
+      idx.push_back(static_cast<int>(e));
+      tg.push_back(targets[k]);
+      fl.push_back(flags[k]);
+    }
+    for (int e : idx) seen_[static_cast<std::size_t>(e)] = 0;
+    const int n = static_cast<int>(idx.size());
+    ensure_fixed_capacity(n);
+    FixedArgs a;
+    a.L = L_;
+    a.old_fixed = fixed_dev_[cur_fixed_];
+    a.n_old = n_fixed_dev_;
+    const int nxt = cur_fixed_ ^ 1;
+    if (n > 0) {
+      x_.upload(fixed_dev_[nxt], idx.data(), idx.size() * sizeof(int));
+      x_.upload(targets_dev_[nxt], tg.data(), tg.size() * sizeof(Vec3));
+      x_.upload(fflags_dev_[nxt], fl.data(), fl.size());
+    }
+    a.fixed = fixed_dev_[nxt];
+    a.fflags = fflags_dev_[nxt];
+    a.targets = targets_dev_[nxt];
+    a.n = n;
+    x_.set_fixed(a);
+    cur_fixed_ = nxt;
+    n_fixed_dev_ = n;
+    fixed_ = std::move(idx);
+  }
+
+  void snapshot() override {}  // fused into velocity_layer(): X- == X between frames
+
+  PropagateStats propagate() override {
+    FixedArgs fa = fixed_args();
+    x_.apply_targets(fa);
+    x_.reset_wave(L_);
+    x_.copy(save_touched_, L_.touched, static_cast<std::size_t>(L_.nbricks));
+    x_.copy(save_hot_, L_.hot, static_cast<std::size_t>(L_.nbricks));
+    for (;;) {
+      PropArgs a;
+      a.L = L_;
+      a.fixed = fixed_dev_[cur_fixed_];
+      a.nfixed = n_fixed_dev_;
+      for (int k = 0; k < 2; ++k) {
+        a.pend_e[k] = pend_e_[k];
+        a.pend_b[k] = pend_b_[k];
+      }
+      a.pend_cap = pend_cap_;
+      a.list = list_;
+      a.st = st_;
+      a.sp = sp_;
+      a.list_cap = list_cap_;
+      a.delta = static_cast<double>(delta_);
+      a.max_sweeps = p_.solver.max_propagation_sweeps;
+      a.ctl = &ctl_->prop;
+      x_.propagate(a);
+      x_.count_touched(L_, &ctl_->prop);
+      x_.download(&host_ctl_->prop, &ctl_->prop, sizeof(PropCtl));
+      x_.sync();
+      if (!host_ctl_->prop.overflow) break;
+      // A list was too small: grow, put the lattice back as it was before the wave, rerun.
+      ++regrowths_;
+      const std::size_t N = static_cast<std::size_t>(L_.n);
+      pend_cap_ = static_cast<int>(std::min<std::size_t>(static_cast<std::size_t>(pend_cap_) * 4, 6 * N + 6 * fixed_.size() + 64));
+      list_cap_ = static_cast<int>(std::min<std::size_t>(static_cast<std::size_t>(list_cap_) * 4, N + 64));
+      alloc_prop_lists();
+      x_.full_reset(L_);
+      x_.zero(L_.wave, static_cast<std::size_t>(L_.nbricks));
+      x_.copy(L_.touched, save_touched_, static_cast<std::size_t>(L_.nbricks));
+      x_.copy(L_.hot, save_hot_, static_cast<std::size_t>(L_.nbricks));
+    }
+    PropagateStats st;
+    st.sweeps = host_ctl_->prop.sweeps;
+    st.converged = host_ctl_->prop.converged != 0;
+    st.reached = host_ctl_->prop.reached;
+    active_ = std::max<Index>(active_, host_ctl_->prop.active);
+    return st;
+  }
+
+  RelaxStats relax(int sweeps) override {
+    RelaxStats st;
+    if (sweeps <= 0) return st;
+    if (sweeps > kMaxSweeps) throw Error("relax: sweeps = " + std::to_string(sweeps) + " is out of range [0, 256]");
+    RelaxArgs a;
+    a.L = L_;
+    a.list = relax_list_;
+    a.ctl = &ctl_->relax;
+    a.threshold = p_.solver.relax_threshold;
+    a.omega = p_.solver.relax_omega;
+    a.sweeps = sweeps;
+    x_.relax(a);
+    // sweeps, active_max and last_max are contiguous at the end of RelaxCtl
+    x_.download(&host_ctl_->relax.stop, &ctl_->relax.stop, sizeof(RelaxCtl) - offsetof(RelaxCtl, stop));
+    x_.sync();
+    st.sweeps = host_ctl_->relax.sweeps;
+    st.max_correction = host_ctl_->relax.last_max;
+    active_ = std::max<Index>(active_, host_ctl_->relax.active_max);
+    return st;
+  }
+
+  void velocity_layer(SpeedStats* speeds) override {
+    LayerArgs a = layer_args(speeds != nullptr, false);
+    x_.zero(&ctl_->layer, sizeof(LayerCtl));
+    x_.layer(a);
+    if (speeds) x_.speed_sum(a);
+    x_.download(&host_ctl_->layer, &ctl_->layer, sizeof(LayerCtl));
+    layer_pending_ = true;
+    if (speeds) {
+      x_.sync();
+      layer_pending_ = false;
+      active_ = std::max<Index>(active_, host_ctl_->layer.count);
+      SpeedStats out;
+      for (int t = 0; t < kTissueCount; ++t) {
+        out.sum[t] = host_ctl_->layer.sum[t];
+        out.max[t] = host_ctl_->layer.max[t];
+      }
+      out.moved = host_ctl_->layer.moved;
+      *speeds = out;
+    }
+  }
+
+  Index active_bricks() const override {
+    if (layer_pending_) {
+      auto* self = const_cast<DeviceBackend*>(this);
+      self->x_.sync();
+      self->layer_pending_ = false;
+      self->active_ = std::max<Index>(active_, host_ctl_->layer.count);
+    }
+    return active_;
+  }
+
+  void mark(int slot) override {
+    if (slot < 0 || slot >= 8) throw Error("mark: slot " + std::to_string(slot) + " is out of range [0, 7]");
+    if (slot == 0) {
+      active_bricks();  // settle the previous frame's count
+      active_ = 0;
+    }
+    x_.mark(slot);
+  }
+  double elapsed_ms(int a, int b) override { return x_.elapsed(a, b); }
+
+  DeviceProbe probe(int reps) override {
+    if (reps < 1) reps = 1;
+    return x_.probe(layer_args(false, true), reps, held_);
+  }
+
+  void download(State& s) override {
+    const std::size_t N = static_cast<std::size_t>(L_.n);
+    s.pos.resize(N);
+    s.vel.resize(N);
+    s.time.resize(N);
+    s.flags.resize(N);
+    x_.download(s.pos.data(), L_.pos, N * sizeof(Vec3));
+    x_.download(s.vel.data(), L_.vel, N * sizeof(Vec3));
+    x_.download(s.time.data(), L_.time, N * sizeof(float));
+    x_.download(s.flags.data(), L_.flags, N);
+    x_.sync();
+    for (auto& f : s.flags) f = static_cast<std::uint8_t>(f & ~kInternalBits);
+  }
+  void download_positions(std::vector<Vec3>& pos) override {
+    pos.resize(static_cast<std::size_t>(L_.n));
+    x_.download(pos.data(), L_.pos, pos.size() * sizeof(Vec3));
+    x_.sync();
+  }
+  Vec3 position(Index i) override {
+    if (i < 0 || i >= L_.n) throw Error("position: element " + std::to_string(i) + " is out of range");
+    Vec3 v;
+    x_.download(&v, L_.pos + i, sizeof(Vec3));
+    x_.sync();
+    return v;
+  }
+
+ private:
+  template <class T>
+  T* alloc(std::size_t count, const char* what) {
+    const std::size_t bytes = std::max<std::size_t>(count, 1) * sizeof(T);
+    void* p = x_.alloc(bytes, what);
+    blocks_.push_back(p);
+    held_ += bytes;
+    return static_cast<T*>(p);
+  }
+  void release(void* p, std::size_t bytes) {
+    if (!p) return;
+    auto it = std::find(blocks_.begin(), blocks_.end(), p);
+    if (it != blocks_.end()) blocks_.erase(it);
+    x_.release(p);
+    held_ -= bytes;
+  }
+  void free_all() noexcept {
+    for (void* p : blocks_) x_.release(p);
+    blocks_.clear();
+    if (host_ctl_) x_.host_release(host_ctl_);
+    host_ctl_ = nullptr;
+    held_ = 0;
+    fixed_cap_ = 0;
+    for (int k = 0; k < 2; ++k) fixed_dev_[k] = nullptr, targets_dev_[k] = nullptr, fflags_dev_[k] = nullptr;
+    for (int k = 0; k < 2; ++k) pend_e_[k] = nullptr, pend_b_[k] = nullptr;
+    list_ = nullptr, st_ = nullptr, sp_ = nullptr;
+    prop_bytes_ = 0;
+  }
+  void alloc_prop_lists() {
+    for (int k = 0; k < 2; ++k) {
+      release(pend_e_[k], prop_pend_bytes_e_);
+      release(pend_b_[k], prop_pend_bytes_b_);
+    }
+    release(list_, prop_list_bytes_i_);
+    release(st_, prop_list_bytes_f_);
+    release(sp_, prop_list_bytes_v_);
+    const std::size_t pc = static_cast<std::size_t>(pend_cap_), lc = static_cast<std::size_t>(list_cap_);
+    for (int k = 0; k < 2; ++k) {
+      pend_e_[k] = alloc<int>(pc, "propagation pending list");
+      pend_b_[k] = alloc<unsigned long long>(pc, "propagation pending list");
+    }
+    list_ = alloc<int>(lc, "propagation bucket list");
+    st_ = alloc<float>(lc, "propagation scratch");
+    sp_ = alloc<Vec3>(lc, "propagation scratch");
+    prop_pend_bytes_e_ = pc * sizeof(int);
+    prop_pend_bytes_b_ = pc * sizeof(unsigned long long);
+    prop_list_bytes_i_ = lc * sizeof(int);
+    prop_list_bytes_f_ = lc * sizeof(float);
+    prop_list_bytes_v_ = lc * sizeof(Vec3);
+    x_.invalidate();
+  }
+  void ensure_fixed_capacity(int n) {
+    if (n <= fixed_cap_ && fixed_dev_[0]) return;
+    // Keep the current list (it is released by the next set_fixed kernel): copy it over.
+    const int cap = std::max(n, std::max(64, fixed_cap_ * 2));
+    int* nf[2];
+    Vec3* nt[2];
+    std::uint8_t* nfl[2];
+    for (int k = 0; k < 2; ++k) {
+      nf[k] = alloc<int>(static_cast<std::size_t>(cap), "fixed set");
+      nt[k] = alloc<Vec3>(static_cast<std::size_t>(cap), "fixed targets");
+      nfl[k] = alloc<std::uint8_t>(static_cast<std::size_t>(cap), "fixed flags");
+    }
+    if (fixed_dev_[cur_fixed_] && n_fixed_dev_ > 0) {
+      x_.copy(nf[cur_fixed_], fixed_dev_[cur_fixed_], static_cast<std::size_t>(n_fixed_dev_) * sizeof(int));
+      x_.copy(nt[cur_fixed_], targets_dev_[cur_fixed_], static_cast<std::size_t>(n_fixed_dev_) * sizeof(Vec3));
+      x_.copy(nfl[cur_fixed_], fflags_dev_[cur_fixed_], static_cast<std::size_t>(n_fixed_dev_));
+    }
+    x_.sync();
+    const std::size_t old = static_cast<std::size_t>(std::max(fixed_cap_, 1));
+    for (int k = 0; k < 2; ++k) {
+      release(fixed_dev_[k], old * sizeof(int));
+      release(targets_dev_[k], old * sizeof(Vec3));
+      release(fflags_dev_[k], old);
+      fixed_dev_[k] = nf[k];
+      targets_dev_[k] = nt[k];
+      fflags_dev_[k] = nfl[k];
+    }
+    fixed_cap_ = cap;
+  }
+  FixedArgs fixed_args() const {
+    FixedArgs a;
+    a.L = L_;
+    a.fixed = fixed_dev_[cur_fixed_];
+    a.targets = targets_dev_[cur_fixed_];
+    a.fflags = fflags_dev_[cur_fixed_];
+    a.n = n_fixed_dev_;
+    return a;
+  }
+  LayerArgs layer_args(bool speeds, bool all) const {
+    LayerArgs a;
+    a.L = L_;
+    a.k = k_;
+    a.speeds = speeds;
+    a.all = all;
+    a.part_sum = part_sum_;
+    a.part_max = part_max_;
+    a.part_moved = part_moved_;
+    a.ctl = &ctl_->layer;
+    return a;
+  }
+
+  X x_;
+  const Model* m_ = nullptr;
+  Params p_;
+  dynamics::LayerConstants k_{};
+  Lattice L_{};
+  bool compact_ = true;
+  float delta_ = 1.0f;
+  std::vector<void*> blocks_;
+  std::size_t held_ = 0;
+  Ctl* ctl_ = nullptr;
+  Ctl* host_ctl_ = nullptr;
+  std::uint8_t *save_touched_ = nullptr, *save_hot_ = nullptr;
+  int* relax_list_ = nullptr;
+  float *part_sum_ = nullptr, *part_max_ = nullptr;
+  int* part_moved_ = nullptr;
+  // propagation lists
+  int pend_cap_ = 0, list_cap_ = 0;
+  int* pend_e_[2] = {nullptr, nullptr};
+  unsigned long long* pend_b_[2] = {nullptr, nullptr};
+  int* list_ = nullptr;
+  float* st_ = nullptr;
+  Vec3* sp_ = nullptr;
+  std::size_t prop_pend_bytes_e_ = 0, prop_pend_bytes_b_ = 0, prop_list_bytes_i_ = 0, prop_list_bytes_f_ = 0,
+              prop_list_bytes_v_ = 0, prop_bytes_ = 0;
+  // FIXED set (double-buffered: the kernel releases the old set and sets the new one)
+  int* fixed_dev_[2] = {nullptr, nullptr};
+  Vec3* targets_dev_[2] = {nullptr, nullptr};
+  std::uint8_t* fflags_dev_[2] = {nullptr, nullptr};
+  int fixed_cap_ = 0, cur_fixed_ = 0, n_fixed_dev_ = 0;
+  std::vector<int> fixed_;
+  std::vector<std::uint8_t> seen_;
+  Index active_ = 0;
+  bool layer_pending_ = false;
+  int pend_override_ = 0, list_override_ = 0, regrowths_ = 0;
+};
+
+}  // namespace hpcm::gpu

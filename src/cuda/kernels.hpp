@@ -1,0 +1,850 @@
+#pragma once
+// The device-side algorithm of the CUDA backend, written as HPCM_HD "kernel bodies".
+//
+// Every kernel of src/cuda is a thin __global__ wrapper around one of the bodies below. A body
+// that needs block-wide barriers is a template over a Block policy: `blk.each(f)` runs f(tid)
+// for every thread of the block and then synchronises (on the GPU: f(threadIdx.x) followed by
+// __syncthreads(); in the host emulation of src/cuda/emulation.hpp: a loop over tid). The same
+// code therefore runs on the GPU and, sequentially, on the CPU, where the test suite checks it
+// against the CPU backend even on machines without a GPU (tests/cuda/test_cuda_emulation.cpp).
+//
+// The per-element rules are not repeated here: they come from solver/rules.hpp (propagation,
+// relaxation, deformation boxes) and dynamics/velocity_update.hpp (the velocity layer), which are
+// HPCM_HD and shared with the CPU backend. What is here is the schedule: buckets, brick lists,
+// red-black colouring, reductions, and the compact per-element memory layout.
+#include <cstdint>
+
+#include "dynamics/velocity_update.hpp"
+#include "hpcm/state.hpp"
+#include "solver/rules.hpp"
+
+namespace hpcm::gpu {
+
+// ---------------------------------------------------------------------------------------------
+// Constants and small helpers
+// ---------------------------------------------------------------------------------------------
+
+/// Internal flag bits (besides kFixed/kGrabbed/kAnchor of state.hpp); never downloaded.
+inline constexpr std::uint8_t kFinalBit = 0x80;   ///< decided in the current wave
+inline constexpr std::uint8_t kListedBit = 0x40;  ///< in the current bucket's list
+inline constexpr std::uint8_t kInternalBits = kFinalBit | kListedBit;
+
+inline constexpr int kMaxMaterialPoints = 16;  ///< compact links: control points in kernel params
+inline constexpr int kMaxSweeps = 256;         ///< SolverParams::relax_sweeps upper bound
+inline constexpr int kPropThreads = 512;       ///< the single-block propagation kernel
+inline constexpr int kBrickThreads = 256;      ///< brick kernels (relaxation, velocity layer)
+inline constexpr int kReduceThreads = 256;     ///< single-block reductions
+
+// Atomics: device atomics on the GPU, plain operations in the (sequential) host emulation.
+HPCM_HD inline int at_add(int* p, int v) {
+#if defined(__CUDA_ARCH__)
+  return atomicAdd(p, v);
+#else
+  const int o = *p;
+  *p = o + v;
+  return o;
+#endif
+}
+HPCM_HD inline void at_min_u64(unsigned long long* p, unsigned long long v) {
+#if defined(__CUDA_ARCH__)
+  atomicMin(p, v);
+#else
+  if (v < *p) *p = v;
+#endif
+}
+HPCM_HD inline void at_max_u32(unsigned* p, unsigned v) {
+#if defined(__CUDA_ARCH__)
+  atomicMax(p, v);
+#else
+  if (v > *p) *p = v;
+#endif
+}
+/// Atomic test-and-set of `bit` in byte i of a byte array that is 4-byte aligned and padded to
+/// a multiple of 4 bytes. Returns whether the bit was already set.
+HPCM_HD inline bool test_and_set_bit(std::uint8_t* base, long long i, std::uint8_t bit) {
+#if defined(__CUDA_ARCH__)
+  unsigned* word = reinterpret_cast<unsigned*>(base + (i & ~3LL));
+  const unsigned m = static_cast<unsigned>(bit) << (8u * static_cast<unsigned>(i & 3));
+  return (atomicOr(word, m) & m) != 0u;
+#else
+  const bool old = (base[i] & bit) != 0;
+  base[i] = static_cast<std::uint8_t>(base[i] | bit);
+  return old;
+#endif
+}
+/// Bits of a non-negative float: ordered like the float, so atomicMax on them is a float max.
+HPCM_HD inline unsigned float_bits(float f) {
+#if defined(__CUDA_ARCH__)
+  return __float_as_uint(f);
+#else
+  unsigned u;
+  __builtin_memcpy(&u, &f, sizeof u);
+  return u;
+#endif
+}
+HPCM_HD inline float bits_float(unsigned u) {
+#if defined(__CUDA_ARCH__)
+  return __uint_as_float(u);
+#else
+  float f;
+  __builtin_memcpy(&f, &u, sizeof f);
+  return f;
+#endif
+}
+
+// ---------------------------------------------------------------------------------------------
+// Lattice on the device: compact per-element layout
+// ---------------------------------------------------------------------------------------------
+
+/// The material's w(HU) control points (MaterialTable::w, reproduced operation by operation).
+struct MaterialW {
+  int n = 0;
+  float hu[kMaxMaterialPoints];
+  float w[kMaxMaterialPoints];
+};
+
+/// Same float operations as MaterialTable::w (src/core/material.cpp, interpolate()).
+HPCM_HD inline float material_w(const MaterialW& m, float hu) {
+  if (hu <= m.hu[0]) return m.w[0];
+  if (hu >= m.hu[m.n - 1]) return m.w[m.n - 1];
+  for (int k = 1; k < m.n; ++k)
+    if (hu <= m.hu[k]) {
+      const float u = (hu - m.hu[k - 1]) / (m.hu[k] - m.hu[k - 1]);
+      return m.w[k - 1] + u * (m.w[k] - m.w[k - 1]);
+    }
+  return m.w[m.n - 1];
+}
+
+/// Device pointers and geometry, passed by value to every kernel.
+/// Per element (compact links): pos, pre, vel 3 x 12 B, time 4, hu 4, tau 4, ltau 3 x 4,
+/// tissue 1, flags 1 = 62 bytes. Link limits are rebuilt on the fly from the link's tolerance
+/// (stored exactly as the CPU Model has it) and w from the pair's mean HU (MaterialW).
+struct Lattice {
+  int nx = 0, ny = 0, nz = 0;
+  long long n = 0;
+  int bs = 8, nbx = 0, nby = 0, nbz = 0;
+  long long nbricks = 0;
+  Vec3* pos = nullptr;   ///< X (X+ after ChainMail)
+  Vec3* pre = nullptr;   ///< X- (pre-ChainMail snapshot; equal to X between frames)
+  Vec3* vel = nullptr;   ///< V
+  float* time = nullptr;
+  std::uint8_t* flags = nullptr;  ///< ElementFlags | internal bits; 4-byte aligned, padded
+  const float* hu = nullptr;
+  const float* tau = nullptr;     ///< element tolerance (relaxation weights)
+  const std::uint8_t* tissue = nullptr;
+  const float* ltau[3] = {nullptr, nullptr, nullptr};        ///< compact links: tau at mean HU
+  const LinkLimits* link[3] = {nullptr, nullptr, nullptr};   ///< explicit links (fallback)
+  MaterialW mat;
+  // per brick
+  std::uint8_t* touched = nullptr;  ///< positions changed this frame (velocity layer must visit)
+  std::uint8_t* hot = nullptr;      ///< relaxation must look at it (and its face neighbours)
+  std::uint8_t* changed = nullptr;  ///< relaxation scratch: changed in the current sweep
+  std::uint8_t* has_vel = nullptr;  ///< carries velocity (velocity layer must visit)
+  std::uint8_t* wave = nullptr;     ///< holds elements with a finite time of the last wave
+
+  HPCM_HD long long index(int x, int y, int z) const { return x + static_cast<long long>(nx) * (y + static_cast<long long>(ny) * z); }
+  HPCM_HD void coords(long long i, int& x, int& y, int& z) const {
+    x = static_cast<int>(i % nx);
+    const long long r = i / nx;
+    y = static_cast<int>(r % ny);
+    z = static_cast<int>(r / ny);
+  }
+  HPCM_HD long long brick_of(int x, int y, int z) const {
+    return x / bs + static_cast<long long>(nbx) * (y / bs + static_cast<long long>(nby) * (z / bs));
+  }
+  HPCM_HD long long brick_of_index(long long i) const {
+    int x, y, z;
+    coords(i, x, y, z);
+    return brick_of(x, y, z);
+  }
+  HPCM_HD void brick_coords(long long b, int& bx, int& by, int& bz) const {
+    bx = static_cast<int>(b % nbx);
+    const long long r = b / nbx;
+    by = static_cast<int>(r % nby);
+    bz = static_cast<int>(r / nby);
+  }
+  /// Element range [lo, hi) of brick b (as BrickGrid::range).
+  HPCM_HD void brick_range(long long b, int lo[3], int hi[3]) const {
+    int bx, by, bz;
+    brick_coords(b, bx, by, bz);
+    lo[0] = bx * bs;
+    lo[1] = by * bs;
+    lo[2] = bz * bs;
+    hi[0] = lo[0] + bs < nx ? lo[0] + bs : nx;
+    hi[1] = lo[1] + bs < ny ? lo[1] + bs : ny;
+    hi[2] = lo[2] + bs < nz ? lo[2] + bs : nz;
+  }
+  /// Limits of the link along axis a between element lo and its + neighbour hi.
+  HPCM_HD LinkLimits link_of(int a, long long lo, long long hi) const {
+    if (link[a]) return link[a][lo];
+    const float mean = 0.5f * (this->hu[lo] + this->hu[hi]);  // MaterialTable::link
+    return limits_from_tau(ltau[a][lo], material_w(mat, mean));
+  }
+};
+
+/// ChainMailCpu::gather on the device layout: same neighbours, same order (-x,+x,-y,+y,-z,+z).
+HPCM_HD inline int gather(const Lattice& L, int x, int y, int z, long long i, solver::Neighbour* nb) {
+  const long long sy = L.nx, sz = static_cast<long long>(L.nx) * L.ny;
+  int c = 0;
+  auto add = [&](long long n, int axis, int side, const LinkLimits& lim) {
+    nb[c].idx = n;
+    nb[c].axis = axis;
+    nb[c].side = side;
+    nb[c].L = lim;
+    nb[c].t = L.time[n];
+    nb[c].tau = L.tau[n];
+    nb[c].p = L.pos[n];
+    ++c;
+  };
+  if (x > 0) add(i - 1, 0, +1, L.link_of(0, i - 1, i));
+  if (x + 1 < L.nx) add(i + 1, 0, -1, L.link_of(0, i, i + 1));
+  if (y > 0) add(i - sy, 1, +1, L.link_of(1, i - sy, i));
+  if (y + 1 < L.ny) add(i + sy, 1, -1, L.link_of(1, i, i + sy));
+  if (z > 0) add(i - sz, 2, +1, L.link_of(2, i - sz, i));
+  if (z + 1 < L.nz) add(i + sz, 2, -1, L.link_of(2, i, i + sz));
+  return c;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Fixed set and targets
+// ---------------------------------------------------------------------------------------------
+
+struct FixedArgs {
+  Lattice L;
+  const int* old_fixed = nullptr;
+  int n_old = 0;
+  const int* fixed = nullptr;         ///< new FIXED set (no duplicates)
+  const std::uint8_t* fflags = nullptr;
+  const Vec3* targets = nullptr;
+  int n = 0;
+};
+
+/// set_fixed: the previous FIXED set is released (flags 0), then the new one set.
+template <class B>
+HPCM_HD void set_fixed_block(const FixedArgs& a, B& blk) {
+  const int T = blk.threads();
+  blk.each([&](int tid) {
+    for (int j = tid; j < a.n_old; j += T) a.L.flags[a.old_fixed[j]] = 0;
+  });
+  blk.each([&](int tid) {
+    for (int j = tid; j < a.n; j += T) a.L.flags[a.fixed[j]] = static_cast<std::uint8_t>(kFixed | a.fflags[j]);
+  });
+}
+
+/// Grabbed / anchored elements go to their targets; their bricks become touched and hot.
+template <class B>
+HPCM_HD void apply_targets_block(const FixedArgs& a, B& blk) {
+  const int T = blk.threads();
+  blk.each([&](int tid) {
+    for (int j = tid; j < a.n; j += T) {
+      const long long i = a.fixed[j];
+      if (!(a.L.pos[i] == a.targets[j])) {
+        a.L.pos[i] = a.targets[j];
+        const long long b = a.L.brick_of_index(i);
+        a.L.touched[b] = 1;
+        a.L.hot[b] = 1;
+      }
+    }
+  });
+}
+
+// ---------------------------------------------------------------------------------------------
+// Propagation: the bucketed schedule of src/solver/propagate.cpp on one thread block
+// ---------------------------------------------------------------------------------------------
+
+struct PropCtl {
+  int sweeps = 0;     ///< Jacobi passes over all buckets
+  int converged = 1;
+  int reached = 0;
+  int overflow = 0;   ///< a pending or bucket list was too small: grow and rerun
+  int active = 0;     ///< touched bricks after the wave
+  int buckets = 0;    ///< non-empty buckets processed
+};
+
+struct PropArgs {
+  Lattice L;
+  const int* fixed = nullptr;
+  int nfixed = 0;
+  int* pend_e[2] = {nullptr, nullptr};                 ///< pending (element, bucket) pushes
+  unsigned long long* pend_b[2] = {nullptr, nullptr};
+  int pend_cap = 0;
+  int* list = nullptr;  ///< the current bucket's elements
+  float* st = nullptr;  ///< Jacobi scratch per list entry
+  Vec3* sp = nullptr;
+  int list_cap = 0;
+  double delta = 1.0;   ///< bucket width (smallest link w), as ChainMailCpu
+  int max_sweeps = 0;
+  PropCtl* ctl = nullptr;
+};
+
+struct PropShared {
+  unsigned long long kmin;
+  int np_in, np_out, nl, any, overflow, cur, reached;
+};
+
+/// bucket_of of propagate.cpp: floor(t / delta) with t promoted to double.
+HPCM_HD inline unsigned long long bucket_of(float t, double delta) {
+  return static_cast<unsigned long long>(floor(static_cast<double>(t) / delta));
+}
+
+/// propagate_in_bucket of propagate.cpp: the rule of rules.hpp restricted to the candidate
+/// times of one bucket.
+HPCM_HD inline bool propagate_in_bucket(long long e, Vec3 p0, const solver::Neighbour* nb, int count,
+                                        unsigned long long bucket, double delta, float& t_out, Vec3& p_out) {
+  float cand[6];
+  int nc = 0;
+  for (int k = 0; k < count; ++k)
+    if (nb[k].t < solver::kInf) {
+      const float c = nb[k].t + nb[k].L.w;
+      if (bucket_of(c, delta) != bucket) continue;
+      int j = nc++;
+      while (j > 0 && cand[j - 1] > c) {
+        cand[j] = cand[j - 1];
+        --j;
+      }
+      cand[j] = c;
+    }
+  for (int i = 0; i < nc; ++i) {
+    if (i > 0 && cand[i] == cand[i - 1]) continue;
+    const float c = cand[i];
+    unsigned mask = 0;
+    for (int k = 0; k < count; ++k)
+      if (solver::key_less(nb[k].t, nb[k].idx, c, e)) mask |= 1u << k;
+    const Vec3 p = solver::clamp_into_boxes(p0, nb, count, mask);
+    if (!(p == p0)) {
+      t_out = c;
+      p_out = p;
+      return true;
+    }
+  }
+  t_out = solver::kInf;
+  p_out = p0;
+  return false;
+}
+
+/// Appends one pending entry to the output buffer.
+HPCM_HD inline void pend_put(const PropArgs& a, PropShared& sh, int e, unsigned long long b) {
+  const int s = at_add(&sh.np_out, 1);
+  if (s < a.pend_cap) {
+    const int out = sh.cur ^ 1;
+    a.pend_e[out][s] = e;
+    a.pend_b[out][s] = b;
+  } else {
+    sh.overflow = 1;
+  }
+}
+
+/// push_neighbours of propagate.cpp. Pushes into buckets <= `processed` are dropped: the CPU
+/// files them into buckets its loop has already passed, which are never processed again.
+HPCM_HD inline void push_neighbours(const PropArgs& a, PropShared& sh, long long i, float t, long long processed) {
+  const Lattice& L = a.L;
+  int x, y, z;
+  L.coords(i, x, y, z);
+  const long long sy = L.nx, sz = static_cast<long long>(L.nx) * L.ny;
+  auto push = [&](long long n, float w) {
+    if (L.flags[n] & (kFinalBit | kFixed)) return;
+    const float c = t + w;
+    const unsigned long long b = bucket_of(c, a.delta);
+    if (processed >= 0 && b <= static_cast<unsigned long long>(processed)) return;
+    pend_put(a, sh, static_cast<int>(n), b);
+  };
+  if (x > 0) push(i - 1, L.link_of(0, i - 1, i).w);
+  if (x + 1 < L.nx) push(i + 1, L.link_of(0, i, i + 1).w);
+  if (y > 0) push(i - sy, L.link_of(1, i - sy, i).w);
+  if (y + 1 < L.ny) push(i + sy, L.link_of(1, i, i + sy).w);
+  if (z > 0) push(i - sz, L.link_of(2, i - sz, i).w);
+  if (z + 1 < L.nz) push(i + sz, L.link_of(2, i, i + sz).w);
+}
+
+/// The whole wave on one block: buckets in ascending order (smallest pending bucket by a block
+/// reduction), each decided by a Jacobi iteration until nothing changes, then its newly final
+/// elements push their neighbours. No host round trip per bucket.
+/// Precondition: the previous wave was reset (reset_wave_block), targets applied.
+template <class B>
+HPCM_HD void propagate_block(const PropArgs& a, PropShared& sh, B& blk) {
+  const Lattice& L = a.L;
+  const int T = blk.threads();
+  blk.each([&](int tid) {
+    if (tid == 0) {
+      sh.kmin = ~0ull;
+      sh.np_in = sh.np_out = sh.nl = sh.any = sh.overflow = sh.cur = sh.reached = 0;
+      a.ctl->active = 0;
+    }
+  });
+  // FIXED elements: t = 0, final (before any push, as on the CPU).
+  blk.each([&](int tid) {
+    for (int j = tid; j < a.nfixed; j += T) {
+      const long long f = a.fixed[j];
+      L.time[f] = 0.0f;
+      L.flags[f] = static_cast<std::uint8_t>(L.flags[f] | kFinalBit);
+      const long long b = L.brick_of_index(f);
+      L.touched[b] = 1;
+      L.hot[b] = 1;
+      L.wave[b] = 1;
+    }
+  });
+  blk.each([&](int tid) {
+    for (int j = tid; j < a.nfixed; j += T) push_neighbours(a, sh, a.fixed[j], 0.0f, -1);
+  });
+  blk.each([&](int tid) {
+    if (tid == 0) {
+      sh.cur ^= 1;
+      sh.np_in = sh.np_out;
+      sh.np_out = 0;
+    }
+  });
+  int iterations = 0, buckets = 0;
+  bool converged = true;
+  while (!sh.overflow) {
+    // (1) smallest pending bucket
+    blk.each([&](int tid) {
+      const int in = sh.cur;
+      for (int j = tid; j < sh.np_in; j += T) at_min_u64(&sh.kmin, a.pend_b[in][j]);
+    });
+    if (sh.np_in == 0) break;
+    const unsigned long long k = sh.kmin;
+    // (2) take bucket k out of the pending list (unique, not final); keep the rest
+    blk.each([&](int tid) {
+      const int in = sh.cur;
+      for (int j = tid; j < sh.np_in; j += T) {
+        const int e = a.pend_e[in][j];
+        const unsigned long long b = a.pend_b[in][j];
+        if (b != k) {
+          pend_put(a, sh, e, b);
+          continue;
+        }
+        if (L.flags[e] & kFinalBit) continue;
+        if (test_and_set_bit(L.flags, e, kListedBit)) continue;
+        const int s = at_add(&sh.nl, 1);
+        if (s < a.list_cap)
+          a.list[s] = e;
+        else
+          sh.overflow = 1;
+      }
+    });
+    if (sh.overflow) break;
+    const int nl = sh.nl;
+    if (nl > 0) {
+      ++buckets;
+      // (3) Jacobi inside the bucket: candidate times of this bucket come from final elements
+      for (int pass = 0;; ++pass) {
+        blk.each([&](int tid) {
+          if (tid == 0) sh.any = 0;
+        });
+        blk.each([&](int tid) {
+          for (int j = tid; j < nl; j += T) {
+            const long long e = a.list[j];
+            int x, y, z;
+            L.coords(e, x, y, z);
+            solver::Neighbour nb[6];
+            const int c = gather(L, x, y, z, e, nb);
+            propagate_in_bucket(e, L.pre[e], nb, c, k, a.delta, a.st[j], a.sp[j]);
+            if (!(a.st[j] == L.time[e]) || !(a.sp[j] == L.pos[e])) sh.any = 1;
+          }
+        });
+        ++iterations;
+        if (!sh.any) break;
+        if (pass >= a.max_sweeps) {
+          converged = false;
+          break;
+        }
+        blk.each([&](int tid) {
+          for (int j = tid; j < nl; j += T) {
+            const long long e = a.list[j];
+            L.time[e] = a.st[j];
+            L.pos[e] = a.sp[j];
+          }
+        });
+      }
+      // (4) elements with a finite time are final
+      blk.each([&](int tid) {
+        for (int j = tid; j < nl; j += T) {
+          const long long e = a.list[j];
+          std::uint8_t f = static_cast<std::uint8_t>(L.flags[e] & ~kListedBit);
+          if (L.time[e] < solver::kInf) {
+            f = static_cast<std::uint8_t>(f | kFinalBit);
+            at_add(&sh.reached, 1);
+            const long long b = L.brick_of_index(e);
+            L.touched[b] = 1;
+            L.hot[b] = 1;
+            L.wave[b] = 1;
+          }
+          L.flags[e] = f;
+        }
+      });
+      // (5) the newly final elements push their neighbours
+      blk.each([&](int tid) {
+        for (int j = tid; j < nl; j += T) {
+          const long long e = a.list[j];
+          if (L.flags[e] & kFinalBit) push_neighbours(a, sh, e, L.time[e], static_cast<long long>(k));
+        }
+      });
+    }
+    // (6) next round reads what was written
+    blk.each([&](int tid) {
+      if (tid == 0) {
+        sh.cur ^= 1;
+        sh.np_in = sh.np_out;
+        sh.np_out = 0;
+        sh.nl = 0;
+        sh.kmin = ~0ull;
+      }
+    });
+  }
+  blk.each([&](int tid) {
+    if (tid == 0) {
+      a.ctl->sweeps = iterations;
+      a.ctl->converged = converged ? 1 : 0;
+      a.ctl->reached = sh.reached;
+      a.ctl->overflow = sh.overflow;
+      a.ctl->buckets = buckets;
+    }
+  });
+}
+
+/// Forgets the previous wave in brick b: times back to +inf, internal bits cleared.
+template <class B>
+HPCM_HD void reset_wave_block(const Lattice& L, long long b, B& blk) {
+  if (!L.wave[b]) return;  // uniform over the block
+  const int T = blk.threads();
+  int lo[3], hi[3];
+  L.brick_range(b, lo, hi);
+  const int bs = L.bs, per = bs * bs * bs;
+  blk.each([&](int tid) {
+    for (int q = tid; q < per; q += T) {
+      const int x = lo[0] + q % bs, y = lo[1] + (q / bs) % bs, z = lo[2] + q / (bs * bs);
+      if (x >= hi[0] || y >= hi[1] || z >= hi[2]) continue;
+      const long long i = L.index(x, y, z);
+      L.time[i] = solver::kInf;
+      L.flags[i] = static_cast<std::uint8_t>(L.flags[i] & ~kInternalBits);
+    }
+  });
+  blk.each([&](int tid) {
+    if (tid == 0) L.wave[b] = 0;
+  });
+}
+
+/// After a list overflow: the whole lattice back to the state before the wave (element i).
+HPCM_HD inline void full_reset_element(const Lattice& L, long long i) {
+  L.time[i] = solver::kInf;
+  L.flags[i] = static_cast<std::uint8_t>(L.flags[i] & ~kInternalBits);
+  if (!(L.flags[i] & kFixed)) L.pos[i] = L.pre[i];
+}
+
+/// Touched bricks after the wave (reported as active bricks), thread per brick.
+HPCM_HD inline void count_touched_thread(const Lattice& L, long long b, PropCtl* ctl) {
+  if (L.touched[b]) at_add(&ctl->active, 1);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Relaxation: red-black Gauss-Seidel on a compacted list of active bricks (src/solver/relax.cpp)
+// ---------------------------------------------------------------------------------------------
+
+struct RelaxCtl {
+  int count[kMaxSweeps];       ///< active (dilated hot) bricks of sweep s
+  unsigned maxcorr[kMaxSweeps];  ///< float bits of the largest correction of sweep s
+  int stop;                    ///< first sweep index that does not run (early exit)
+  int sweeps;
+  int active_max;
+  float last_max;
+};
+
+struct RelaxArgs {
+  Lattice L;
+  int* list = nullptr;  ///< capacity nbricks
+  RelaxCtl* ctl = nullptr;
+  float threshold = 1e-4f;
+  float omega = 1.0f;   ///< over-relaxation factor (SolverParams::relax_omega)
+  int sweeps = 0;
+};
+
+struct RelaxShared {
+  int any;
+  unsigned maxc;
+};
+
+/// Sweep start, thread per index < K.
+HPCM_HD inline void relax_begin_thread(const RelaxArgs& a, int j) {
+  if (j < a.sweeps) {
+    a.ctl->count[j] = 0;
+    a.ctl->maxcorr[j] = 0;
+  }
+  if (j == 0) {
+    a.ctl->stop = a.sweeps;
+    a.ctl->sweeps = 0;
+    a.ctl->active_max = 0;
+    a.ctl->last_max = 0.0f;
+  }
+}
+
+/// Work list of sweep s: hot bricks and their face neighbours (BrickGrid::dilate_to_list),
+/// thread per brick. The order of the list does not matter: every result is order-free.
+HPCM_HD inline void relax_list_thread(const RelaxArgs& a, int s, long long b) {
+  if (s >= a.ctl->stop || b >= a.L.nbricks) return;
+  const Lattice& L = a.L;
+  int bx, by, bz;
+  L.brick_coords(b, bx, by, bz);
+  const long long sy = L.nbx, sz = static_cast<long long>(L.nbx) * L.nby;
+  bool on = L.hot[b];
+  if (!on && bx > 0) on = L.hot[b - 1];
+  if (!on && bx + 1 < L.nbx) on = L.hot[b + 1];
+  if (!on && by > 0) on = L.hot[b - sy];
+  if (!on && by + 1 < L.nby) on = L.hot[b + sy];
+  if (!on && bz > 0) on = L.hot[b - sz];
+  if (!on && bz + 1 < L.nbz) on = L.hot[b + sz];
+  if (on) a.list[at_add(&a.ctl->count[s], 1)] = static_cast<int>(b);
+}
+
+/// One colour of sweep s over the listed bricks (blocks stride over the list). Elements of one
+/// colour only read the other colour, so the order inside the pass does not matter.
+template <class B>
+HPCM_HD void relax_colour_block(const RelaxArgs& a, int s, int colour, RelaxShared& sh, B& blk) {
+  if (s >= a.ctl->stop) return;  // uniform; nobody writes stop during this kernel
+  const Lattice& L = a.L;
+  const int T = blk.threads();
+  const int n = a.ctl->count[s];
+  const int bs = L.bs, half = bs / 2, per = bs * bs * half;
+  blk.each([&](int tid) {
+    if (tid == 0) {
+      sh.any = 0;
+      sh.maxc = 0;
+    }
+  });
+  for (int j = blk.block(); j < n; j += blk.blocks()) {
+    const long long b = a.list[j];
+    int lo[3], hi[3];
+    L.brick_range(b, lo, hi);
+    blk.each([&](int tid) {
+      for (int q = tid; q < per; q += T) {
+        const int lz = q / (bs * half), r = q % (bs * half);
+        const int y = lo[1] + r / half, z = lo[2] + lz;
+        if (y >= hi[1] || z >= hi[2]) continue;
+        const int x = lo[0] + ((lo[0] + y + z + colour) & 1) + 2 * (r % half);
+        if (x >= hi[0]) continue;
+        const long long i = L.index(x, y, z);
+        if (L.flags[i] & kFixed) continue;
+        solver::Neighbour nb[6];
+        const int c = gather(L, x, y, z, i, nb);
+        if (c == 0) continue;
+        const Vec3 cur = L.pos[i];
+        const Vec3 p = solver::relax_element(nb, c, cur, a.omega);
+        const Vec3 d = p - cur;
+        const float corr = sqrtf(d.x * d.x + d.y * d.y + d.z * d.z);
+        if (!(corr >= a.threshold) || corr == 0.0f) continue;  // small corrections are skipped
+        L.pos[i] = p;
+        sh.any = 1;
+        at_max_u32(&sh.maxc, float_bits(corr));
+      }
+    });
+    blk.each([&](int tid) {
+      if (tid == 0) {
+        if (sh.any) {
+          L.changed[b] = 1;
+          at_max_u32(&a.ctl->maxcorr[s], sh.maxc);
+        }
+        sh.any = 0;
+        sh.maxc = 0;
+      }
+    });
+  }
+}
+
+/// End of sweep s (grid-stride over the list): hot <- changed, touched |= changed; thread 0
+/// books the sweep and decides the early exit.
+HPCM_HD inline void relax_end_thread(const RelaxArgs& a, int s, long long g, long long nthreads) {
+  if (s >= a.ctl->stop) return;
+  const Lattice& L = a.L;
+  const int n = a.ctl->count[s];
+  for (long long j = g; j < n; j += nthreads) {
+    const long long b = a.list[j];
+    const std::uint8_t ch = L.changed[b];
+    L.hot[b] = ch;
+    if (ch) L.touched[b] = 1;
+    L.changed[b] = 0;
+  }
+  if (g == 0) {
+    if (n == 0) {
+      a.ctl->stop = s;  // nothing to relax: the sweep does not count
+    } else {
+      const float m = bits_float(a.ctl->maxcorr[s]);
+      a.ctl->sweeps = s + 1;
+      a.ctl->last_max = m;
+      if (n > a.ctl->active_max) a.ctl->active_max = n;
+      if (m < a.threshold || m == 0.0f) a.ctl->stop = s + 1;  // early exit
+    }
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The fused velocity layer: dX from X-, damping, clamp, position update, boundary clamp and the
+// frame-end snapshot in one pass (no separate snapshot copy remains)
+// ---------------------------------------------------------------------------------------------
+
+struct LayerCtl {
+  int count;  ///< bricks visited
+  int pad;
+  long long moved;
+  float sum[kTissueCount];
+  float max[kTissueCount];
+};
+
+struct LayerArgs {
+  Lattice L;
+  dynamics::LayerConstants k;
+  bool speeds = false;  ///< write per-brick speed partials
+  bool all = false;     ///< visit every brick (benchmark probe)
+  float* part_sum = nullptr;  ///< [nbricks][4]
+  float* part_max = nullptr;  ///< [nbricks][4]
+  int* part_moved = nullptr;  ///< [nbricks]
+  LayerCtl* ctl = nullptr;
+};
+
+struct LayerShared {
+  int anyv, moved;
+  float sum[kTissueCount][kBrickThreads];
+  float max[kTissueCount][kBrickThreads];
+  int cnt[kBrickThreads];
+};
+
+/// One brick of the layer (block per brick). Bricks neither touched this frame nor carrying
+/// velocity are skipped, as on the CPU (VelocityLayerCpu::apply).
+template <class B>
+HPCM_HD void layer_block(const LayerArgs& a, long long b, LayerShared& sh, B& blk) {
+  const Lattice& L = a.L;
+  const int T = blk.threads();
+  const bool on = a.all || L.touched[b] || L.has_vel[b];  // uniform; written only after a barrier
+  if (!on) {
+    if (a.speeds) {
+      blk.each([&](int tid) {
+        if (tid < kTissueCount) {
+          a.part_sum[b * kTissueCount + tid] = 0.0f;
+          a.part_max[b * kTissueCount + tid] = 0.0f;
+        }
+        if (tid == 0) a.part_moved[b] = 0;
+      });
+    }
+    return;
+  }
+  int lo[3], hi[3];
+  L.brick_range(b, lo, hi);
+  const int bs = L.bs, per = bs * bs * bs;
+  blk.each([&](int tid) {
+    if (tid == 0) {
+      sh.anyv = 0;
+      sh.moved = 0;
+    }
+  });
+  blk.each([&](int tid) {
+    float ls[kTissueCount] = {0, 0, 0, 0}, lm[kTissueCount] = {0, 0, 0, 0};
+    int lc = 0;
+    bool anyv = false, moved = false;
+    for (int q = tid; q < per; q += T) {
+      const int x = lo[0] + q % bs, y = lo[1] + (q / bs) % bs, z = lo[2] + q / (bs * bs);
+      if (x >= hi[0] || y >= hi[1] || z >= hi[2]) continue;
+      const long long i = L.index(x, y, z);
+      const int t = L.tissue[i];
+      const Vec3 post = L.pos[i], before = L.pre[i];
+      Vec3 v = L.vel[i];
+      const Vec3 out = dynamics::velocity_update(a.k, t, (L.flags[i] & kFixed) != 0, before, post,
+                                                 Vec3{float(x), float(y), float(z)}, v);
+      L.vel[i] = v;
+      L.pos[i] = out;
+      L.pre[i] = out;  // frame-end snapshot: next frame's X-
+      if (!(v == Vec3{})) anyv = true;
+      if (!(out == post)) moved = true;
+      if (a.speeds) {
+        const float sp = norm(out - before);
+        ls[t] += sp;
+        lm[t] = lm[t] > sp ? lm[t] : sp;
+        if (sp > 0) ++lc;
+      }
+    }
+    if (anyv) sh.anyv = 1;
+    if (moved) sh.moved = 1;
+    if (a.speeds) {
+      for (int t = 0; t < kTissueCount; ++t) {
+        sh.sum[t][tid] = ls[t];
+        sh.max[t][tid] = lm[t];
+      }
+      sh.cnt[tid] = lc;
+    }
+  });
+  if (a.speeds) {  // fixed-shape tree: deterministic run to run
+    for (int h = T / 2; h > 0; h /= 2)
+      blk.each([&](int tid) {
+        if (tid < h) {
+          for (int t = 0; t < kTissueCount; ++t) {
+            sh.sum[t][tid] += sh.sum[t][tid + h];
+            sh.max[t][tid] = sh.max[t][tid] > sh.max[t][tid + h] ? sh.max[t][tid] : sh.max[t][tid + h];
+          }
+          sh.cnt[tid] += sh.cnt[tid + h];
+        }
+      });
+  }
+  blk.each([&](int tid) {
+    if (tid == 0) {
+      L.has_vel[b] = sh.anyv ? 1 : 0;
+      if (sh.moved) L.hot[b] = 1;
+      L.touched[b] = 0;
+      at_add(&a.ctl->count, 1);
+      if (a.speeds) {
+        for (int t = 0; t < kTissueCount; ++t) {
+          a.part_sum[b * kTissueCount + t] = sh.sum[t][0];
+          a.part_max[b * kTissueCount + t] = sh.max[t][0];
+        }
+        a.part_moved[b] = sh.cnt[0];
+      }
+    }
+  });
+}
+
+struct SpeedShared {
+  double sum[kTissueCount][kReduceThreads];
+  float max[kTissueCount][kReduceThreads];
+  long long moved[kReduceThreads];
+};
+
+/// Per-tissue speed totals over all bricks (one block, fixed order: deterministic).
+template <class B>
+HPCM_HD void speed_sum_block(const LayerArgs& a, SpeedShared& sh, B& blk) {
+  const int T = blk.threads();
+  blk.each([&](int tid) {
+    double s[kTissueCount] = {0, 0, 0, 0};
+    float m[kTissueCount] = {0, 0, 0, 0};
+    long long mv = 0;
+    for (long long b = tid; b < a.L.nbricks; b += T) {
+      for (int t = 0; t < kTissueCount; ++t) {
+        s[t] += a.part_sum[b * kTissueCount + t];
+        const float x = a.part_max[b * kTissueCount + t];
+        m[t] = m[t] > x ? m[t] : x;
+      }
+      mv += a.part_moved[b];
+    }
+    for (int t = 0; t < kTissueCount; ++t) {
+      sh.sum[t][tid] = s[t];
+      sh.max[t][tid] = m[t];
+    }
+    sh.moved[tid] = mv;
+  });
+  for (int h = T / 2; h > 0; h /= 2)
+    blk.each([&](int tid) {
+      if (tid < h) {
+        for (int t = 0; t < kTissueCount; ++t) {
+          sh.sum[t][tid] += sh.sum[t][tid + h];
+          sh.max[t][tid] = sh.max[t][tid] > sh.max[t][tid + h] ? sh.max[t][tid] : sh.max[t][tid + h];
+        }
+        sh.moved[tid] += sh.moved[tid + h];
+      }
+    });
+  blk.each([&](int tid) {
+    if (tid == 0) {
+      for (int t = 0; t < kTissueCount; ++t) {
+        a.ctl->sum[t] = static_cast<float>(sh.sum[t][0]);
+        a.ctl->max[t] = sh.max[t][0];
+      }
+      a.ctl->moved = sh.moved[0];
+    }
+  });
+}
+
+}  // namespace hpcm::gpu

@@ -1,0 +1,231 @@
+#pragma once
+// Parity of a device backend against the CPU backend (the reference), through the public
+// Backend / Simulation API: propagation and relaxation waves with random grabs, and the full
+// A/B/C frame pipeline over 200 frames, on the phantom and on random heterogeneous lattices.
+// Used by test_cuda_parity.cpp (the CUDA backend, on a GPU) and test_cuda_emulation.cpp (the
+// same device algorithm emulated on the host, so it is checked where no GPU exists).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <functional>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "hpcm/backend.hpp"
+#include "hpcm/phantom.hpp"
+#include "hpcm/scenario.hpp"
+#include "hpcm/simulation.hpp"
+
+namespace hpcm::cudatest {
+
+using Factory = std::function<std::unique_ptr<Backend>()>;
+
+inline constexpr float kPosTol = 1e-4f;    ///< lattice units per element (SPEC §8.6)
+inline constexpr float kCurveTol = 1e-5f;  ///< per-tissue mean / max speed per frame
+
+inline Model phantom_model(Int3 dims, const Params& p, std::uint64_t seed = 1) {
+  PhantomOptions o;
+  o.dims = dims;
+  o.seed = seed;
+  return build_model(make_phantom(o), p);
+}
+
+/// Random heterogeneous lattice: random blobs of air, fat, muscle/organ and bone over soft
+/// tissue, plus per-element noise, so every class and every kind of link occurs.
+inline Model random_model(Int3 dims, std::uint64_t seed, const Params& p) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<float> U(0.0f, 1.0f);
+  struct Blob {
+    float x, y, z, r, hu;
+  };
+  const float tissues[] = {-1000.0f, -100.0f, 40.0f, 60.0f, 900.0f, -400.0f};
+  std::vector<Blob> blobs;
+  const int nblobs = 4 + static_cast<int>(U(rng) * 6);
+  for (int k = 0; k < nblobs; ++k)
+    blobs.push_back({U(rng) * dims.x, U(rng) * dims.y, U(rng) * dims.z, 2.0f + U(rng) * 0.3f * dims.x,
+                     tissues[static_cast<int>(U(rng) * 6) % 6]});
+  Volume v;
+  v.dims = dims;
+  v.hu.resize(v.size());
+  std::normal_distribution<float> noise(0.0f, 40.0f);
+  for (int z = 0; z < dims.z; ++z)
+    for (int y = 0; y < dims.y; ++y)
+      for (int x = 0; x < dims.x; ++x) {
+        float hu = 20.0f;
+        for (const Blob& b : blobs) {
+          const float dx = x - b.x, dy = y - b.y, dz = z - b.z;
+          if (dx * dx + dy * dy + dz * dz <= b.r * b.r) hu = b.hu;
+        }
+        v.hu[static_cast<std::size_t>(v.index(x, y, z))] = hu + noise(rng);
+      }
+  return build_model(v, p);
+}
+
+inline float max_diff(const std::vector<Vec3>& a, const std::vector<Vec3>& b) {
+  if (a.size() != b.size()) return INFINITY;
+  float d = 0;
+  for (std::size_t i = 0; i < a.size(); ++i)
+    for (int k = 0; k < 3; ++k) {
+      const float e = std::fabs(a[i][k] - b[i][k]);
+      if (!(e <= d)) d = e;  // NaN propagates as failure
+    }
+  return d;
+}
+
+/// Largest |t_a - t_b| over elements reached in both; -1 when the reached sets differ.
+inline float time_diff(const std::vector<float>& a, const std::vector<float>& b) {
+  float d = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    if (std::isinf(a[i]) != std::isinf(b[i])) return -1.0f;
+    if (!std::isinf(a[i])) d = std::max(d, std::fabs(a[i] - b[i]));
+  }
+  return d;
+}
+
+inline std::vector<Index> ball(const Model& m, Int3 c, float r) {
+  std::vector<Index> out;
+  const int R = static_cast<int>(std::floor(r));
+  for (int z = std::max(0, c.z - R); z <= std::min(m.dims.z - 1, c.z + R); ++z)
+    for (int y = std::max(0, c.y - R); y <= std::min(m.dims.y - 1, c.y + R); ++y)
+      for (int x = std::max(0, c.x - R); x <= std::min(m.dims.x - 1, c.x + R); ++x) {
+        const float dx = float(x - c.x), dy = float(y - c.y), dz = float(z - c.z);
+        if (dx * dx + dy * dy + dz * dz <= r * r) out.push_back(m.index(x, y, z));
+      }
+  return out;
+}
+
+/// Waves straight through the Backend interface: random grab, propagate, relax(K), velocity
+/// layer; after each stage both backends must agree. Consecutive waves start from the deformed
+/// state of the previous one (the previous wave must be forgotten correctly).
+inline void check_waves(const Factory& make_device, const Model& m, const Params& p, std::uint64_t seed, int waves,
+                        const std::string& what) {
+  auto cpu = make_backend(BackendKind::Cpu);
+  auto dev = make_device();
+  const State s0 = State::rest(m);
+  cpu->load(m, p, s0);
+  dev->load(m, p, s0);
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<float> U(0.0f, 1.0f);
+  float worst_p = 0, worst_t = 0;
+  for (int w = 0; w < waves; ++w) {
+    SCOPED_TRACE(what + ", wave " + std::to_string(w));
+    const Int3 c{1 + static_cast<int>(U(rng) * (m.dims.x - 2)), 1 + static_cast<int>(U(rng) * (m.dims.y - 2)),
+                 1 + static_cast<int>(U(rng) * (m.dims.z - 2))};
+    const float r = 0.5f + 2.0f * U(rng);
+    const Vec3 off{4.0f * U(rng) - 2.0f, 4.0f * U(rng) - 2.0f, 4.0f * U(rng) - 2.0f};
+    std::vector<Vec3> now;
+    cpu->download_positions(now);
+    const std::vector<Index> fixed = ball(m, c, r);
+    std::vector<Vec3> targets;
+    for (Index i : fixed) targets.push_back(now[static_cast<std::size_t>(i)] + off);
+    const std::vector<std::uint8_t> fl(fixed.size(), kGrabbed);
+    cpu->set_fixed(fixed, targets, fl);
+    dev->set_fixed(fixed, targets, fl);
+    cpu->snapshot();
+    dev->snapshot();
+    const PropagateStats pc = cpu->propagate(), pd = dev->propagate();
+    EXPECT_EQ(pc.reached, pd.reached) << "elements reached by the wave";
+    EXPECT_EQ(pc.converged, pd.converged);
+    State sc, sd;
+    cpu->download(sc);
+    dev->download(sd);
+    const float dp = max_diff(sc.pos, sd.pos), dt = time_diff(sc.time, sd.time);
+    ASSERT_LE(dp, kPosTol) << "propagation positions";
+    ASSERT_GE(dt, 0.0f) << "propagation: the sets of reached elements differ";
+    ASSERT_LE(dt, kPosTol) << "propagation arrival times";
+    EXPECT_EQ(sc.flags, sd.flags);
+    worst_p = std::max(worst_p, dp);
+    worst_t = std::max(worst_t, dt);
+
+    const int K = p.solver.relax_sweeps;
+    const RelaxStats rc = cpu->relax(K), rd = dev->relax(K);
+    std::vector<Vec3> xc, xd;
+    cpu->download_positions(xc);
+    dev->download_positions(xd);
+    const float dr = max_diff(xc, xd);
+    ASSERT_LE(dr, kPosTol) << "relaxation positions (cpu " << rc.sweeps << " sweeps, device " << rd.sweeps << ")";
+    worst_p = std::max(worst_p, dr);
+
+    SpeedStats vc, vd;
+    cpu->velocity_layer(&vc);
+    dev->velocity_layer(&vd);
+    cpu->download(sc);
+    dev->download(sd);
+    const float dl = std::max(max_diff(sc.pos, sd.pos), max_diff(sc.vel, sd.vel));
+    ASSERT_LE(dl, kPosTol) << "velocity layer positions / velocities";
+    worst_p = std::max(worst_p, dl);
+    for (int t = 0; t < kTissueCount; ++t) {
+      const float n = static_cast<float>(std::max<Index>(m.class_count[t], 1));
+      EXPECT_NEAR(vc.sum[t] / n, vd.sum[t] / n, kCurveTol) << "mean speed, class " << t;
+      EXPECT_NEAR(vc.max[t], vd.max[t], kCurveTol) << "max speed, class " << t;
+    }
+  }
+  std::printf("[parity] %s: %d waves, max |dx| %.3g, max |dt| %.3g\n", what.c_str(), waves, worst_p, worst_t);
+}
+
+/// The full frame pipeline (Simulation) on both backends, frame by frame.
+inline void check_pipeline(const Factory& make_device, const Model& m, const Params& p, const Scenario& sc, int frames,
+                           const std::string& what) {
+  Simulation a(m, p, make_backend(BackendKind::Cpu));
+  Simulation b(m, p, make_device());
+  ScenarioPlayer pa(sc, a), pb(sc, b);
+  StepOptions so;
+  so.speeds = true;
+  float worst = 0, worst_curve = 0;
+  int deform = 0;
+  for (int f = 0; f < frames; ++f) {
+    SCOPED_TRACE(what + ", frame " + std::to_string(f));
+    const FrameReport ra = pa.done() ? a.step(so) : pa.step(so);
+    const FrameReport rb = pb.done() ? b.step(so) : pb.step(so);
+    ASSERT_EQ(ra.deform, rb.deform);
+    deform += ra.deform;
+    EXPECT_EQ(ra.propagate_converged, rb.propagate_converged);
+    const State& xa = a.state();
+    const State& xb = b.state();
+    const float d = std::max(max_diff(xa.pos, xb.pos), max_diff(xa.vel, xb.vel));
+    ASSERT_LE(d, kPosTol) << "positions / velocities";
+    worst = std::max(worst, d);
+    for (int t = 0; t < kTissueCount; ++t) {
+      const float dm = std::fabs(ra.mean_speed[t] - rb.mean_speed[t]), dx = std::fabs(ra.max_speed[t] - rb.max_speed[t]);
+      ASSERT_LE(dm, kCurveTol) << "mean speed of class " << tissue_name(t);
+      ASSERT_LE(dx, kCurveTol) << "max speed of class " << tissue_name(t);
+      worst_curve = std::max({worst_curve, dm, dx});
+    }
+  }
+  EXPECT_GT(deform, 0) << "the scenario must deform";
+  std::printf("[parity] %s: %d frames (%d deform), max |dx| %.3g, max curve diff %.3g\n", what.c_str(), frames, deform,
+              worst, worst_curve);
+}
+
+/// A scenario of `grabs` random grabs in sequence (pull, hold, release, idle), `frames` long.
+inline Scenario random_scenario(const Model& m, std::uint64_t seed, int grabs, int frames) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<float> U(0.0f, 1.0f);
+  Scenario s;
+  s.name = "random_grabs";
+  s.frames = frames;
+  const int slot = frames / std::max(grabs, 1);
+  for (int g = 0; g < grabs; ++g) {
+    GrabAction a;
+    a.centre = Int3{1 + static_cast<int>(U(rng) * (m.dims.x - 2)), 1 + static_cast<int>(U(rng) * (m.dims.y - 2)),
+                    1 + static_cast<int>(U(rng) * (m.dims.z - 2))};
+    a.radius = 0.8f + 1.5f * U(rng);
+    a.start = g * slot;
+    const int pull = 5 + static_cast<int>(U(rng) * 15);
+    const Vec3 off{6.0f * U(rng) - 3.0f, 6.0f * U(rng) - 3.0f, 6.0f * U(rng) - 3.0f};
+    a.path = {{0, {0, 0, 0}}, {pull, off}};
+    a.release = std::min(pull + 5, slot - 1);
+    s.grabs.push_back(a);
+  }
+  s.validate(m);
+  return s;
+}
+
+inline Params with_mode(Params p, DampingMode mode) {
+  p.dynamics.mode = mode;
+  return p;
+}
+
+}  // namespace hpcm::cudatest

@@ -1,0 +1,122 @@
+// The CUDA backend's device algorithm (src/cuda/kernels.hpp + device_backend.hpp), run by the
+// sequential host emulation of src/cuda/emulation.hpp, against the CPU backend. This runs
+// everywhere (no GPU needed): it checks the GPU schedule (single-block bucketed propagation,
+// brick lists, red-black relaxation, fused velocity layer, reductions) and the compact link
+// layout; test_cuda_parity.cpp runs the same suite on a real device.
+#include <omp.h>
+
+#include "cuda/emulation.hpp"
+#include "parity_suite.hpp"
+
+using namespace hpcm;
+using namespace hpcm::cudatest;
+
+namespace {
+
+// The emulation runs on one host thread; idle OpenMP workers of the CPU reference would spin
+// against it on small CI machines, so the reference runs single-threaded here (its result does
+// not depend on the thread count).
+const bool single_threaded = [] {
+  omp_set_num_threads(1);
+  return true;
+}();
+
+Factory emulated(int blocks = 3) {
+  return [blocks] { return gpu::make_emulated_backend(blocks); };
+}
+
+TEST(CudaEmulation, CompactLinksReproduceTheModel) {
+  const Params p;
+  const Model m = random_model({12, 10, 9}, 7, p);
+  gpu::DeviceBackend<gpu::EmuExec> b;
+  b.load(m, p, State::rest(m));
+  EXPECT_TRUE(b.compact_links()) << "w(mean HU) and limits_from_tau must give the Model's link limits bit for bit";
+  const std::size_t per = b.device_bytes() / static_cast<std::size_t>(m.size());
+  EXPECT_GE(per, 62u);
+}
+
+TEST(CudaEmulation, MemoryPerElementAtThePapersScale) {
+  // 128x128x75 (1,228,800 elements, the paper's lattice): the backend's allocations, counted
+  // by the same code that runs on the GPU, stay within 64 bytes per element.
+  const Params p;
+  const Model m = phantom_model({128, 128, 75}, p);
+  gpu::DeviceBackend<gpu::EmuExec> b;
+  b.load(m, p, State::rest(m));
+  ASSERT_TRUE(b.compact_links());
+  const double per = static_cast<double>(b.device_bytes()) / static_cast<double>(m.size());
+  std::printf("[parity] device bytes per element at 128x128x75: %.2f\n", per);
+  EXPECT_LE(per, 64.0);
+  EXPECT_GE(per, 62.0);
+}
+
+TEST(CudaEmulation, ExplicitLinksWhenTheModelIsNotCompact) {
+  const Params p;
+  Model m = random_model({10, 9, 8}, 3, p);
+  m.link[1][5].max_d += 0.01f;  // a hand-edited link: not of the material's form
+  const auto dev = [] { return std::make_unique<gpu::DeviceBackend<gpu::EmuExec>>(); };
+  auto b = dev();
+  b->load(m, p, State::rest(m));
+  EXPECT_FALSE(b->compact_links());
+  check_waves([&] { return dev(); }, m, with_mode(p, DampingMode::Viscoelastic), 11, 4, "explicit links");
+}
+
+TEST(CudaEmulation, WavesOnThePhantom) {
+  const Params p;
+  const Model m = phantom_model({28, 28, 14}, p);
+  check_waves(emulated(), m, with_mode(p, DampingMode::Viscoelastic), 1, 6, "phantom 28x28x14");
+}
+
+TEST(CudaEmulation, WavesOnRandomLattices) {
+  for (std::uint64_t seed : {2u, 5u}) {
+    Params p;
+    p.solver.brick_size = seed == 2 ? 4 : 8;
+    p.solver.relax_omega = seed == 2 ? 1.0f : 1.5f;  // plain Gauss-Seidel and over-relaxation
+    const Model m = random_model({19, 17, 13}, seed, p);
+    check_waves(emulated(seed == 2 ? 1 : 4), m, with_mode(p, DampingMode::Simple), seed * 31, 6,
+                "random lattice seed " + std::to_string(seed));
+  }
+}
+
+TEST(CudaEmulation, PropagationListsGrowOnOverflow) {
+  // Tiny initial lists: the pending and bucket lists overflow, the wave is put back and rerun
+  // with larger lists, and the result must still be the CPU's.
+  const Params p;
+  const Model m = phantom_model({28, 28, 14}, p);
+  const Factory tiny = [] {
+    auto b = std::make_unique<gpu::DeviceBackend<gpu::EmuExec>>();
+    b->set_initial_list_capacity(8, 2);
+    return std::unique_ptr<Backend>(std::move(b));
+  };
+  check_waves(tiny, m, with_mode(p, DampingMode::Viscoelastic), 1, 4, "tiny initial lists");
+  // The same waves, counting the reruns.
+  gpu::DeviceBackend<gpu::EmuExec> b;
+  b.set_initial_list_capacity(8, 2);
+  b.load(m, p, State::rest(m));
+  const std::vector<Index> fixed = ball(m, Int3{14, 14, 7}, 1.5f);
+  std::vector<Vec3> targets;
+  for (Index i : fixed) targets.push_back(m.rest(i) + Vec3{0, -2.0f, 0});
+  b.set_fixed(fixed, targets, std::vector<std::uint8_t>(fixed.size(), kGrabbed));
+  const PropagateStats st = b.propagate();
+  EXPECT_GT(st.reached, 0);
+  EXPECT_GT(b.list_regrowths(), 0) << "the tiny lists must have overflowed";
+  std::printf("[parity] %d list regrowths for one wave from capacities 8/2\n", b.list_regrowths());
+}
+
+TEST(CudaEmulation, PipelinePaperProtocolABC) {
+  const Params p;
+  const Model m = phantom_model({24, 24, 12}, p);
+  for (DampingMode mode : {DampingMode::None, DampingMode::Simple, DampingMode::Viscoelastic})
+    check_pipeline(emulated(), m, with_mode(p, mode), Scenario::paper_protocol(), 200,
+                   std::string("phantom, paper protocol, ") + damping_mode_name(mode));
+}
+
+TEST(CudaEmulation, PipelineRandomGrabsABC) {
+  const Params p;
+  const Model m = random_model({16, 14, 12}, 21, p);
+  const Scenario sc = random_scenario(m, 4, 3, 200);
+  for (DampingMode mode : {DampingMode::None, DampingMode::Simple, DampingMode::Viscoelastic})
+    check_pipeline(emulated(2), m, with_mode(p, mode), sc, 200,
+                   std::string("random lattice, random grabs, ") + damping_mode_name(mode));
+}
+
+}  // namespace
