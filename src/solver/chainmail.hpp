@@ -49,6 +49,7 @@ class ChainMailCpu {
  private:
   BrickGrid grid_;
   std::vector<std::uint8_t> touched_, hot_, changed_;
+  std::vector<float> weight_;                ///< relaxation weight 1/(tau + 1e-4) per element
   std::vector<Index> list_;
   // propagation
   float delta_ = 0;                          ///< bucket width: smallest link w of the model

@@ -12,6 +12,8 @@ void ChainMailCpu::init(const Model& m, int brick_size) {
   hot_.assign(static_cast<std::size_t>(grid_.count), 0);
   changed_.assign(static_cast<std::size_t>(grid_.count), 0);
   final_.assign(static_cast<std::size_t>(m.size()), 0);
+  weight_.resize(static_cast<std::size_t>(m.size()));
+  for (Index i = 0; i < m.size(); ++i) weight_[i] = 1.0f / (m.tau[i] + 1e-4f);  // as in relax_element
   reached_.clear();
   buckets_.clear();
   // Bucket width: the smallest time penalty of any link (w > 0 is validated).
