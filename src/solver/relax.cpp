@@ -60,7 +60,7 @@ inline bool relax_fast(const Model& m, const float* W, const Vec3* pos, int x, i
 RelaxStats ChainMailCpu::relax(const Model& m, std::vector<Vec3>& pos, const std::vector<float>& time,
                                const std::vector<std::uint8_t>& flags, int sweeps, float threshold, float omega) {
   RelaxStats st;
-  Index active_max = last_active_;
+  Index active_max = 0;  // this call only; the backend combines it with propagation's
   std::vector<std::uint8_t>& work = hot_;
   for (int s = 0; s < sweeps; ++s) {
     grid_.dilate_to_list(work, list_);

@@ -1,0 +1,205 @@
+// The frame pipeline (SPEC §6) through hpcm::Simulation: the idle stage never propagates, the
+// deformation stage does; FIXED and bone elements keep V = 0 in every frame; the reported
+// speeds are |X_end(t) - X_end(t-1)|; the stage times add up; and the full pipeline under
+// condition C is bitwise reproducible run to run and across thread counts, frame by frame.
+#include <gtest/gtest.h>
+#include <omp.h>
+
+#include <cstring>
+#include <functional>
+
+#include "hpcm/phantom.hpp"
+#include "hpcm/scenario.hpp"
+#include "hpcm/simulation.hpp"
+
+using namespace hpcm;
+
+namespace {
+
+Model uniform_model(Int3 dims, float hu, const Params& p) {
+  Volume v;
+  v.dims = dims;
+  v.hu.assign(v.size(), hu);
+  return build_model(v, p);
+}
+
+/// Uniform skin_fat lattice, no anchors, no relaxation: only propagation can move an element
+/// that the velocity layer does not move.
+Params no_relax_params() {
+  Params p;
+  p.material.points = {{-2000.0f, 0.2f, 1.0f}, {2000.0f, 0.2f, 1.0f}};
+  p.solver.anchors = AnchorMode::None;
+  p.solver.relax_sweeps = 0;
+  p.solver.grab_radius = 0.5f;
+  return p;
+}
+
+/// The rest state with element `e` displaced by `d` (links around it violated).
+State displaced_state(const Model& m, Index e, Vec3 d) {
+  State s = State::rest(m);
+  s.pos[e] = s.pos[e] + d;
+  return s;
+}
+
+}  // namespace
+
+// After release, an element displaced so that its links are violated: an idle frame runs no
+// propagation (sweeps 0) and an element that the wave would drag stays where it is. The same
+// configuration with the element held (a deformation frame) propagates and drags it.
+TEST(FramePipeline, IdleStageNeverPropagates) {
+  const Params p = no_relax_params();
+  const Int3 dims{12, 3, 3};
+  // Stretches the x link by 2 (box max 1 + tau = 1.2) and shears the y and z links by 2
+  // (box 0.2); x = -2 is just inside the boundary box [-2, 13].
+  const Vec3 d{-2.0f, 0.0f, 0.0f};
+  StepOptions opt;
+  opt.link_violation = true;
+  for (DampingMode mode : {DampingMode::None, DampingMode::Viscoelastic}) {
+    Params pm = p;
+    pm.dynamics.mode = mode;
+    const Model model = uniform_model(dims, -100.0f, pm);
+    const Index e = model.index(0, 1, 1), far = model.index(5, 1, 1);
+
+    // Idle: no grab held.
+    Simulation idle(model, pm);
+    idle.backend().load(idle.model(), idle.params(), displaced_state(idle.model(), e, d));
+    ASSERT_FALSE(idle.grabbing());
+    for (int f = 0; f < 3; ++f) {
+      const FrameReport r = idle.step(opt);
+      EXPECT_FALSE(r.deform);
+      EXPECT_EQ(r.propagate_sweeps, 0) << "the idle stage must not propagate";
+      EXPECT_GT(r.max_link_violation, 1.5f) << "the violation must survive idle frames";
+      EXPECT_EQ(idle.position(far), idle.model().rest(far));
+      EXPECT_EQ(idle.position(e), idle.model().rest(e) + d);
+    }
+
+    // Deformation: the same configuration, the displaced element held where it is.
+    Simulation deform(model, pm);
+    deform.backend().load(deform.model(), deform.params(), displaced_state(deform.model(), e, d));
+    deform.grab(e);
+    ASSERT_EQ(deform.grabbed().size(), 1u);
+    const FrameReport r = deform.step(opt);
+    EXPECT_TRUE(r.deform);
+    EXPECT_GT(r.propagate_sweeps, 0);
+    EXPECT_LT(r.max_link_violation, 1e-4f) << "propagation must resolve the violation";
+    // The wave drags the far element along the chain: every x link at its maximum length
+    // 1.2, so x = -2 + 5 * 1.2 = 4 (rest 5).
+    EXPECT_NEAR(deform.position(far).x, 4.0f, 1e-4f);
+  }
+}
+
+// Every frame of the paper protocol (condition C, small phantom): deformation frames while the
+// grab is held (propagation runs), idle frames after release (no propagation); held and bone
+// elements keep V = 0 exactly; reported speeds are |X_end(t) - X_end(t-1)| per class; stage
+// times are non-negative and SimTotal is their sum.
+TEST(FramePipeline, PaperProtocolFramesOnPhantom) {
+  PhantomOptions o;
+  o.dims = {40, 40, 20};
+  Params p;  // defaults: viscoelastic (C), bone anchors, bone inverse mass 0
+  ASSERT_EQ(p.dynamics.mode, DampingMode::Viscoelastic);
+  ASSERT_EQ(p.dynamics.inverse_mass[static_cast<int>(Tissue::Bone)], 0.0f);
+  const Model m = build_model(make_phantom(o), p);
+  ASSERT_GT(m.class_count[static_cast<int>(Tissue::Bone)], 0);
+  const Scenario sc = Scenario::paper_protocol(4.0f, 8, 4, 30);
+  const int release = sc.last_release_frame();
+  ASSERT_EQ(release, 12);
+
+  Simulation sim(m, p);
+  ScenarioPlayer player(sc, sim);
+  std::vector<Vec3> prev = sim.state().pos;
+  int frame = 0, moving_after_release = 0;
+  while (!player.done()) {
+    const FrameReport r = player.step();
+    const State& s = sim.state();
+    if (frame < release) {
+      EXPECT_TRUE(r.deform) << "frame " << frame;
+      EXPECT_GT(r.propagate_sweeps, 0) << "frame " << frame;
+      ASSERT_FALSE(sim.grabbed().empty());
+      for (Index g : sim.grabbed()) ASSERT_EQ(s.vel[g], (Vec3{})) << "held element " << g << ", frame " << frame;
+    } else {
+      EXPECT_FALSE(r.deform) << "frame " << frame;
+      EXPECT_EQ(r.propagate_sweeps, 0) << "frame " << frame;
+    }
+    // Bone: inverse mass 0 and anchored, so its velocity state is exactly 0.
+    for (Index i = 0; i < m.size(); ++i)
+      if (m.tissue[i] == static_cast<int>(Tissue::Bone)) ASSERT_EQ(s.vel[i], (Vec3{})) << "bone " << i << ", frame " << frame;
+    // Speeds: mean and max of |X_end(t) - X_end(t-1)| per class.
+    PerTissue sum{}, mx{};
+    Index moved = 0;
+    for (Index i = 0; i < m.size(); ++i) {
+      const float sp = norm(s.pos[i] - prev[i]);
+      sum[m.tissue[i]] += sp;
+      mx[m.tissue[i]] = std::max(mx[m.tissue[i]], sp);
+      if (sp > 0) ++moved;
+    }
+    for (int t = 0; t < kTissueCount; ++t) {
+      const float mean = m.class_count[t] ? sum[t] / m.class_count[t] : 0.0f;
+      EXPECT_NEAR(r.mean_speed[t], mean, 1e-6f + 1e-4f * mean) << "class " << t << ", frame " << frame;
+      EXPECT_EQ(r.max_speed[t], mx[t]) << "class " << t << ", frame " << frame;
+    }
+    EXPECT_EQ(r.moved_elements, moved) << "frame " << frame;
+    if (frame >= release && r.mean_speed[static_cast<int>(Tissue::SkinFat)] > 0) ++moving_after_release;
+    // Stage times.
+    EXPECT_GE(r.chainmail_ms, 0.0);
+    EXPECT_GE(r.inertia_ms, 0.0);
+    EXPECT_GE(r.snapshot_ms, 0.0);
+    EXPECT_NEAR(r.sim_total_ms, r.chainmail_ms + r.inertia_ms + r.snapshot_ms, 1e-9);
+    prev = s.pos;
+    ++frame;
+  }
+  // The residual motion after release is what the idle stage must preserve.
+  EXPECT_GE(moving_after_release, 10);
+}
+
+// Same input, same result (SPEC §8.6, CPU): the full pipeline under condition C on a small
+// phantom, 60 frames (pull 10, hold 5, release, 45 free frames), compared bit for bit in every
+// frame: two runs with 2 threads, and one with 1 thread.
+TEST(FramePipeline, BitwiseReproducibleRunToRunAndAcrossThreads) {
+  PhantomOptions o;
+  o.dims = {40, 40, 24};
+  Params p;
+  ASSERT_EQ(p.dynamics.mode, DampingMode::Viscoelastic);
+  const Model m = build_model(make_phantom(o), p);
+  const Scenario sc = Scenario::paper_protocol(5.0f, 10, 5, 45);
+  ASSERT_EQ(sc.frames, 60);
+  const int saved = omp_get_max_threads();
+  auto run = [&](int threads, const std::function<void(int, const State&, const FrameReport&)>& each) {
+    omp_set_num_threads(threads);
+    Simulation sim(m, p);
+    ScenarioPlayer player(sc, sim);
+    int f = 0;
+    while (!player.done()) {
+      const FrameReport r = player.step();
+      each(f++, sim.state(), r);
+    }
+  };
+  std::vector<State> ref;
+  std::vector<FrameReport> ref_reports;
+  run(2, [&](int, const State& s, const FrameReport& r) {
+    ref.push_back(s);
+    ref_reports.push_back(r);
+  });
+  ASSERT_EQ(ref.size(), 60u);
+  const std::size_t n = ref[0].pos.size();
+  for (int threads : {2, 1}) {
+    int mismatched = 0;
+    run(threads, [&](int f, const State& s, const FrameReport& r) {
+      const bool same = std::memcmp(s.pos.data(), ref[f].pos.data(), n * sizeof(Vec3)) == 0 &&
+                        std::memcmp(s.vel.data(), ref[f].vel.data(), n * sizeof(Vec3)) == 0 &&
+                        std::memcmp(s.time.data(), ref[f].time.data(), n * sizeof(float)) == 0 &&
+                        std::memcmp(r.mean_speed.data(), ref_reports[f].mean_speed.data(), sizeof(PerTissue)) == 0 &&
+                        r.propagate_sweeps == ref_reports[f].propagate_sweeps && r.relax_sweeps == ref_reports[f].relax_sweeps;
+      if (!same && mismatched++ == 0) ADD_FAILURE() << "first difference at frame " << f << " with " << threads << " thread(s)";
+    });
+    EXPECT_EQ(mismatched, 0) << threads << " thread(s)";
+  }
+  omp_set_num_threads(saved);
+  // The run did something after release: otherwise equality would be trivial.
+  float moved = 0, vmax = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    moved = std::max(moved, norm(ref.back().pos[i] - ref[15].pos[i]));
+    vmax = std::max(vmax, norm(ref[20].vel[i]));
+  }
+  EXPECT_GT(moved, 0.01f);
+  EXPECT_GT(vmax, 0.0f);
+}
