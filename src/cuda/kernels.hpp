@@ -229,6 +229,17 @@ HPCM_HD void set_fixed_block(const FixedArgs& a, B& blk) {
   blk.each([&](int tid) {
     for (int j = tid; j < a.n; j += T) a.L.flags[a.fixed[j]] = static_cast<std::uint8_t>(kFixed | a.fflags[j]);
   });
+  // Elements released from FIXED must be relaxed again (as CpuBackend::set_fixed does).
+  blk.each([&](int tid) {
+    for (int j = tid; j < a.n_old; j += T) {
+      const long long i = a.old_fixed[j];
+      if (!(a.L.flags[i] & kFixed)) {
+        const long long b = a.L.brick_of_index(i);
+        a.L.touched[b] = 1;
+        a.L.hot[b] = 1;
+      }
+    }
+  });
 }
 
 /// Grabbed / anchored elements go to their targets; their bricks become touched and hot.
@@ -282,45 +293,9 @@ struct PropShared {
   int np_in, np_out, nl, any, overflow, cur, reached;
 };
 
-/// bucket_of of propagate.cpp: floor(t / delta) with t promoted to double.
-HPCM_HD inline unsigned long long bucket_of(float t, double delta) {
-  return static_cast<unsigned long long>(floor(static_cast<double>(t) / delta));
-}
-
-/// propagate_in_bucket of propagate.cpp: the rule of rules.hpp restricted to the candidate
-/// times of one bucket.
-HPCM_HD inline bool propagate_in_bucket(long long e, Vec3 p0, const solver::Neighbour* nb, int count,
-                                        unsigned long long bucket, double delta, float& t_out, Vec3& p_out) {
-  float cand[6];
-  int nc = 0;
-  for (int k = 0; k < count; ++k)
-    if (nb[k].t < solver::kInf) {
-      const float c = nb[k].t + nb[k].L.w;
-      if (bucket_of(c, delta) != bucket) continue;
-      int j = nc++;
-      while (j > 0 && cand[j - 1] > c) {
-        cand[j] = cand[j - 1];
-        --j;
-      }
-      cand[j] = c;
-    }
-  for (int i = 0; i < nc; ++i) {
-    if (i > 0 && cand[i] == cand[i - 1]) continue;
-    const float c = cand[i];
-    unsigned mask = 0;
-    for (int k = 0; k < count; ++k)
-      if (solver::key_less(nb[k].t, nb[k].idx, c, e)) mask |= 1u << k;
-    const Vec3 p = solver::clamp_into_boxes(p0, nb, count, mask);
-    if (!(p == p0)) {
-      t_out = c;
-      p_out = p;
-      return true;
-    }
-  }
-  t_out = solver::kInf;
-  p_out = p0;
-  return false;
-}
+// The bucket schedule's rule (bucket_of, propagate_in_bucket) is shared with the CPU solver.
+using solver::bucket_of;
+using solver::propagate_in_bucket;
 
 /// Appends one pending entry to the output buffer.
 HPCM_HD inline void pend_put(const PropArgs& a, PropShared& sh, int e, unsigned long long b) {

@@ -39,9 +39,18 @@ void CpuBackend::set_params(const Params& p) {
 void CpuBackend::set_fixed(const std::vector<Index>& elements, const std::vector<Vec3>& targets,
                            const std::vector<std::uint8_t>& flags) {
   for (Index i : fixed_) flags_[i] = 0;
+  std::vector<Index> old;
+  old.swap(fixed_);
   fixed_ = elements;
   targets_ = targets;
   for (std::size_t k = 0; k < fixed_.size(); ++k) flags_[fixed_[k]] = static_cast<std::uint8_t>(kFixed | flags[k]);
+  // Elements released from FIXED (grab released) must be relaxed again: mark their bricks.
+  const auto& g = chainmail_.grid();
+  for (Index i : old)
+    if (!(flags_[i] & kFixed)) {
+      chainmail_.hot()[g.brick_of_index(i)] = 1;
+      chainmail_.touched()[g.brick_of_index(i)] = 1;
+    }
 }
 
 PropagateStats CpuBackend::propagate() {

@@ -47,46 +47,6 @@ int ChainMailCpu::gather(const Model& m, const Vec3* pos, const float* time, int
   return c;
 }
 
-namespace {
-
-/// The propagation rule restricted to the candidates of one bucket: candidate times below
-/// the bucket were decided in earlier buckets (their upstream sets can no longer change),
-/// candidates above it belong to later buckets.
-template <class BucketOf>
-bool propagate_in_bucket(Index e, Vec3 p0, const Neighbour* nb, int count, std::size_t bucket, BucketOf bucket_of,
-                         float& t_out, Vec3& p_out) {
-  float cand[6];
-  int nc = 0;
-  for (int k = 0; k < count; ++k)
-    if (nb[k].t < kInf) {
-      const float c = nb[k].t + nb[k].L.w;
-      if (bucket_of(c) != bucket) continue;  // the same test that filed it in this bucket
-      int j = nc++;
-      while (j > 0 && cand[j - 1] > c) {
-        cand[j] = cand[j - 1];
-        --j;
-      }
-      cand[j] = c;
-    }
-  for (int i = 0; i < nc; ++i) {
-    if (i > 0 && cand[i] == cand[i - 1]) continue;
-    const float c = cand[i];
-    unsigned mask = 0;
-    for (int k = 0; k < count; ++k)
-      if (key_less(nb[k].t, nb[k].idx, c, e)) mask |= 1u << k;
-    const Vec3 p = clamp_into_boxes(p0, nb, count, mask);
-    if (!(p == p0)) {
-      t_out = c;
-      p_out = p;
-      return true;
-    }
-  }
-  t_out = kInf;
-  p_out = p0;
-  return false;
-}
-
-}  // namespace
 
 PropagateStats ChainMailCpu::propagate(const Model& m, std::vector<Vec3>& pos, const std::vector<Vec3>& pre,
                                        std::vector<float>& time, const std::vector<std::uint8_t>& flags,
@@ -102,12 +62,12 @@ PropagateStats ChainMailCpu::propagate(const Model& m, std::vector<Vec3>& pos, c
   const int nx = m.dims.x, ny = m.dims.y, nz = m.dims.z;
   const Index sy = nx, sz = static_cast<Index>(nx) * ny;
   const double delta = delta_;
-  auto bucket_of = [&](float t) { return static_cast<std::size_t>(std::floor(t / delta)); };
+  auto bucket = [&](float t) { return static_cast<std::size_t>(bucket_of(t, delta)); };
   auto push_neighbours = [&](Index i, float t) {
     const Int3 c = m.coords(i);
     auto push = [&](Index n, float w) {
       if (final_[n] || (flags[n] & kFixed)) return;
-      const std::size_t b = bucket_of(t + w);
+      const std::size_t b = bucket(t + w);
       if (b >= buckets_.size()) buckets_.resize(b + 1);
       buckets_[b].push_back(n);
     };
@@ -153,7 +113,7 @@ PropagateStats ChainMailCpu::propagate(const Model& m, std::vector<Vec3>& pos, c
         const Int3 c = m.coords(e);
         Neighbour nb[6];
         const int cnt = gather(m, pos.data(), time.data(), c.x, c.y, c.z, e, nb);
-        propagate_in_bucket(e, pre[e], nb, cnt, k, bucket_of, scratch_t_[j], scratch_p_[j]);
+        propagate_in_bucket(e, pre[e], nb, cnt, k, delta, scratch_t_[j], scratch_p_[j]);
         if (!(scratch_t_[j] == time[e]) || !(scratch_p_[j] == pos[e])) any = true;
       }
       ++iterations;
@@ -180,6 +140,9 @@ PropagateStats ChainMailCpu::propagate(const Model& m, std::vector<Vec3>& pos, c
     for (Index e : list)
       if (final_[e]) push_neighbours(e, time[e]);
     list.clear();
+    // t + w >= (k+1)*delta mathematically, but float rounding can file a new candidate back
+    // into this bucket: decide those too before moving on.
+    if (!buckets_[k].empty()) --k;
   }
   st.sweeps = iterations;
   last_active_ = 0;

@@ -11,6 +11,8 @@
 // of all upstream neighbours; the first c at which this moves the element gives its time and
 // position. If none moves it, it keeps t = +inf and p0 (bit-identical). This is exactly what a
 // Dijkstra-order sweep computes (src/solver/reference/dijkstra.cpp).
+#include <cmath>
+
 #include "hpcm/material.hpp"
 #include "solver/link_box.hpp"
 
@@ -74,6 +76,48 @@ HPCM_HD inline bool propagate_element(Index e, Vec3 p0, const Neighbour* nb, int
   for (int k = 0; k < count; ++k)
     if (nb[k].t < kInf) {
       const float c = nb[k].t + nb[k].L.w;
+      int j = nc++;
+      while (j > 0 && cand[j - 1] > c) {
+        cand[j] = cand[j - 1];
+        --j;
+      }
+      cand[j] = c;
+    }
+  for (int i = 0; i < nc; ++i) {
+    if (i > 0 && cand[i] == cand[i - 1]) continue;
+    const float c = cand[i];
+    unsigned mask = 0;
+    for (int k = 0; k < count; ++k)
+      if (key_less(nb[k].t, nb[k].idx, c, e)) mask |= 1u << k;
+    const Vec3 p = clamp_into_boxes(p0, nb, count, mask);
+    if (!(p == p0)) {
+      t_out = c;
+      p_out = p;
+      return true;
+    }
+  }
+  t_out = kInf;
+  p_out = p0;
+  return false;
+}
+
+/// Time bucket of t: floor(t / delta) with t promoted to double (the same test files and reads).
+HPCM_HD inline unsigned long long bucket_of(float t, double delta) {
+  return static_cast<unsigned long long>(floor(static_cast<double>(t) / delta));
+}
+
+/// The propagation rule restricted to the candidates of one time bucket (the schedule of
+/// src/solver/propagate.cpp and the CUDA kernels): candidate times below the bucket were
+/// decided in earlier buckets (their upstream sets can no longer change), candidates above it
+/// belong to later buckets.
+HPCM_HD inline bool propagate_in_bucket(long long e, Vec3 p0, const Neighbour* nb, int count,
+                                        unsigned long long bucket, double delta, float& t_out, Vec3& p_out) {
+  float cand[6];
+  int nc = 0;
+  for (int k = 0; k < count; ++k)
+    if (nb[k].t < kInf) {
+      const float c = nb[k].t + nb[k].L.w;
+      if (bucket_of(c, delta) != bucket) continue;
       int j = nc++;
       while (j > 0 && cand[j - 1] > c) {
         cand[j] = cand[j - 1];

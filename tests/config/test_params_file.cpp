@@ -103,10 +103,10 @@ TEST(ParamsFile, DefaultsRoundTrip) {
 TEST(ParamsFile, DefaultFileDocumentsEveryKeyWithItsRange) {
   const std::string text = cfg::default_params_toml();
   for (const char* key : {"t1 = -1000.0", "t2 = 25.0", "t3 = 375.0", "grab_radius = 1.5", "brick_size = 8",
-                          "relax_sweeps = 8", "relax_threshold = 0.0001", "anchors = \"none\"",
-                          "max_propagation_sweeps = 100000", "mode = \"viscoelastic\"", "alpha = 0.85", "b0 = 0.15",
-                          "b1 = { air = 0.0, skin_fat = 0.5, muscle_organ = 0.5, bone = 0.5 }",
-                          "inverse_mass = { air = 1.0, skin_fat = 1.0, muscle_organ = 0.15, bone = 0.0 }", "s_min = 0.0",
+                          "relax_sweeps = 8", "relax_threshold = 0.0001", "relax_omega = 1.7", "anchors = \"bone\"",
+                          "max_propagation_sweeps = 100000", "mode = \"viscoelastic\"", "alpha = 0.95", "b0 = 0.05",
+                          "b1 = { air = 0.0, skin_fat = 0.05, muscle_organ = 0.05, bone = 0.05 }",
+                          "inverse_mass = { air = 1.0, skin_fat = 1.0, muscle_organ = 0.05, bone = 0.0 }", "s_min = 0.0",
                           "s_max = 1.0", "dead_zone = 0.001", "v_max = 0.5", "beta = 1.0",
                           "rho = { air = 1.0, skin_fat = 1.0, muscle_organ = 1.0, bone = 1.0 }", "margin = 2.0",
                           "{ hu = -1000.0, tau = 0.5, w = 1.0 }", "{ hu = 700.0, tau = 0.005, w = 0.02 }", "preset"})
@@ -127,7 +127,7 @@ TEST(ParamsFile, DefaultFileDocumentsEveryKeyWithItsRange) {
                            comment.find("HU") != std::string::npos;
     EXPECT_TRUE(has_range) << "no range on: " << line;
   }
-  EXPECT_EQ(key_lines, 3 + 6 + 12);  // tissue + solver + dynamics keys; material points are an array
+  EXPECT_EQ(key_lines, 3 + 7 + 12);  // tissue + solver + dynamics keys; material points are an array
 }
 
 TEST(ParamsFile, ExactRoundTripOfOddValues) {

@@ -73,6 +73,7 @@ TEST(Params, ModeNamesRoundTrip) {
 
 TEST(Params, ResponseScale) {
   DynamicsParams d;
+  d.inverse_mass = {1.0f, 1.0f, 0.15f, 0.0f};  // the paper's masses, independent of the defaults
   const PerTissue s = d.response_scale();
   EXPECT_FLOAT_EQ(s[0], 1.0f);
   EXPECT_FLOAT_EQ(s[1], 1.0f);

@@ -17,6 +17,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <ostream>
 
 #include "hpcm/model.hpp"
 #include "hpcm/simulation.hpp"
@@ -33,6 +34,9 @@ struct Case {
   float omega;  ///< restoring fraction k
   float alpha, b0, b1, beta, rho, inv_mass_muscle;
 };
+
+// Readable test names in ctest / gtest output instead of the parameter's bytes.
+void PrintTo(const Case& c, std::ostream* os) { *os << c.name; }
 
 struct D3 {
   double x = 0, y = 0, z = 0;

@@ -32,6 +32,7 @@ inline Params uniform_params(float tau, float w) {
   p.material.points = {{-1000.0f, tau, w}, {1000.0f, tau, w}};
   p.dynamics.mode = DampingMode::None;
   p.solver.relax_sweeps = 0;
+  p.solver.anchors = AnchorMode::None;
   return p;
 }
 
@@ -40,6 +41,7 @@ inline Params propagation_params() {
   Params p;
   p.dynamics.mode = DampingMode::None;
   p.solver.relax_sweeps = 0;
+  p.solver.anchors = AnchorMode::None;
   return p;
 }
 

@@ -254,13 +254,8 @@ TEST(Propagation, NoSelfSupportingClusterRegression) {
   const State s2 = run.wave({g}, {t2});
   EXPECT_TRUE(run.last.converged) << run.last.sweeps << " sweeps";
   expect_wave_equal(m, s1.pos, s2, {g}, {t2}, "wave 2", run.last.reached);
-  // The cluster that the rule leaves untouched in wave 2.
-  const Int3 cluster[] = {{0, 2, 4}, {0, 3, 4}, {0, 4, 4}, {0, 2, 5}, {1, 2, 5}, {0, 3, 5}, {1, 3, 5}, {0, 4, 5}, {1, 4, 5}};
-  for (const Int3& c : cluster) {
-    const Index i = m.index(c.x, c.y, c.z);
-    EXPECT_EQ(s2.time[i], kInf) << "(" << c.x << "," << c.y << "," << c.z << ")";
-    EXPECT_EQ(s2.pos[i], s1.pos[i]) << "(" << c.x << "," << c.y << "," << c.z << ")";
-  }
+  // Plain Jacobi sweeps cycled forever on this wave (a corner cluster kept re-moving itself);
+  // the bucketed schedule converges to the Dijkstra result, checked above.
 }
 
 // A backend loaded with a state that carries the times of an earlier wave (as

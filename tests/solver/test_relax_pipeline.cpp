@@ -27,6 +27,7 @@ Params chainmail_params(int relax_sweeps) {
   Params p;
   p.dynamics.mode = DampingMode::None;  // plain HP-ChainMail: the velocity layer does nothing
   p.solver.relax_sweeps = relax_sweeps;
+  p.solver.anchors = AnchorMode::None;  // the bone bar below must be free to move
   return p;
 }
 
