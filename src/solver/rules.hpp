@@ -69,38 +69,6 @@ HPCM_HD inline Vec3 clamp_into_boxes(Vec3 p0, const Neighbour* nb, int count, un
   return out;
 }
 
-/// Propagation rule for a non-FIXED element e. Returns true when it moved (t_out finite).
-HPCM_HD inline bool propagate_element(Index e, Vec3 p0, const Neighbour* nb, int count, float& t_out, Vec3& p_out) {
-  float cand[6];
-  int nc = 0;
-  for (int k = 0; k < count; ++k)
-    if (nb[k].t < kInf) {
-      const float c = nb[k].t + nb[k].L.w;
-      int j = nc++;
-      while (j > 0 && cand[j - 1] > c) {
-        cand[j] = cand[j - 1];
-        --j;
-      }
-      cand[j] = c;
-    }
-  for (int i = 0; i < nc; ++i) {
-    if (i > 0 && cand[i] == cand[i - 1]) continue;
-    const float c = cand[i];
-    unsigned mask = 0;
-    for (int k = 0; k < count; ++k)
-      if (key_less(nb[k].t, nb[k].idx, c, e)) mask |= 1u << k;
-    const Vec3 p = clamp_into_boxes(p0, nb, count, mask);
-    if (!(p == p0)) {
-      t_out = c;
-      p_out = p;
-      return true;
-    }
-  }
-  t_out = kInf;
-  p_out = p0;
-  return false;
-}
-
 /// Time bucket of t: floor(t / delta) with t promoted to double (the same test files and reads).
 HPCM_HD inline unsigned long long bucket_of(float t, double delta) {
   return static_cast<unsigned long long>(floor(static_cast<double>(t) / delta));
