@@ -256,12 +256,7 @@ Params parse_params(const std::string& toml_text, const std::string& source_name
 }
 
 Params load_params(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error(path + ": cannot open the parameter file");
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  if (in.bad()) throw Error(path + ": cannot read the parameter file");
-  return parse_params(ss.str(), path);
+  return parse_params(detail::read_text(path, "parameter file"), path);
 }
 
 std::string default_params_toml() {

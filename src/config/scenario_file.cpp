@@ -193,12 +193,7 @@ Scenario parse_scenario(const std::string& toml_text, const std::string& source_
 }
 
 Scenario load_scenario(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error(path + ": cannot open the scenario file");
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  if (in.bad()) throw Error(path + ": cannot read the scenario file");
-  return parse_scenario(ss.str(), path);
+  return parse_scenario(detail::read_text(path, "scenario file"), path);
 }
 
 std::string scenario_to_toml(const Scenario& s) {

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
 #include <sstream>
 
 namespace hpcm::config::detail {
@@ -256,6 +257,15 @@ std::string locate_message(const toml::table& root, const std::string& msg) {
     key.resize(key.find_last_of(".["));
   }
   return msg;
+}
+
+std::string read_text(const std::string& path, const std::string& what) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw Error(path + ": cannot open the " + what);
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  if (in.bad()) throw Error(path + ": cannot read the " + what);
+  return ss.str();
 }
 
 }  // namespace hpcm::config::detail

@@ -73,4 +73,7 @@ class Section {
 /// is present in the parsed table (e.g. "dynamics.alpha = 1.5 is out of range ...").
 std::string locate_message(const toml::table& root, const std::string& msg);
 
+/// Whole file as text; `what` names it in errors ("parameter file", "scenario file").
+std::string read_text(const std::string& path, const std::string& what);
+
 }  // namespace hpcm::config::detail
