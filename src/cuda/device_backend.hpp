@@ -47,12 +47,24 @@ inline bool compact_links_match(const Model& m, const MaterialW& mat) {
   return true;
 }
 
+/// Largest propagation list capacities (entries): pend + 6 * list < 2^31 (int counters).
+inline constexpr std::size_t kMaxPendCap = std::numeric_limits<int>::max() / 2;
+inline constexpr std::size_t kMaxListCap = std::numeric_limits<int>::max() / 16;
+
 template <class X>
 class DeviceBackend final : public Backend {
  public:
   template <class... A>
   explicit DeviceBackend(A&&... args) : x_(std::forward<A>(args)...) {}
-  ~DeviceBackend() override { free_all(); }
+  ~DeviceBackend() override {
+    // Work still queued (the velocity layer's download into the pinned control block) must end
+    // before its buffers are freed.
+    try {
+      if (!blocks_.empty()) x_.sync();
+    } catch (...) {
+    }
+    free_all();
+  }
   DeviceBackend(const DeviceBackend&) = delete;
   DeviceBackend& operator=(const DeviceBackend&) = delete;
 
@@ -76,6 +88,11 @@ class DeviceBackend final : public Backend {
     if (static_cast<Index>(s.pos.size()) != n || static_cast<Index>(s.vel.size()) != n ||
         static_cast<Index>(s.flags.size()) != n)
       throw Error("CUDA backend: state size does not match the model (" + std::to_string(n) + " elements)");
+    // Element indices are 32-bit on the device (fixed set, pending and bucket lists).
+    if (n > static_cast<Index>(std::numeric_limits<int>::max()))
+      throw Error("CUDA backend: " + std::to_string(n) + " elements: at most " +
+                  std::to_string(std::numeric_limits<int>::max()) + " are supported");
+    if (!blocks_.empty()) x_.sync();  // nothing queued may still use the buffers freed below
     free_all();
     m_ = &m;
     p_ = p;
@@ -280,8 +297,18 @@ class DeviceBackend final : public Backend {
       // A list was too small: grow, put the lattice back as it was before the wave, rerun.
       ++regrowths_;
       const std::size_t N = static_cast<std::size_t>(L_.n);
-      pend_cap_ = static_cast<int>(std::min<std::size_t>(static_cast<std::size_t>(pend_cap_) * 4, 6 * N + 6 * fixed_.size() + 64));
-      list_cap_ = static_cast<int>(std::min<std::size_t>(static_cast<std::size_t>(list_cap_) * 4, N + 64));
+      // Upper bounds: every push (6 per final or FIXED element) / every element fits. The caps
+      // also keep the kernel's 32-bit counters from wrapping: a round appends at most
+      // pend_cap + 6 * list_cap entries (< 2^31 with these limits).
+      const std::size_t pend_max = std::min<std::size_t>(6 * N + 6 * fixed_.size() + 64, kMaxPendCap);
+      const std::size_t list_max = std::min<std::size_t>(N + 64, kMaxListCap);
+      const int pend_new = static_cast<int>(std::min<std::size_t>(static_cast<std::size_t>(pend_cap_) * 4, pend_max));
+      const int list_new = static_cast<int>(std::min<std::size_t>(static_cast<std::size_t>(list_cap_) * 4, list_max));
+      if (pend_new <= pend_cap_ && list_new <= list_cap_)
+        throw Error("CUDA backend: propagation lists overflowed at their largest size (pending " +
+                    std::to_string(pend_cap_) + ", bucket " + std::to_string(list_cap_) + " entries)");
+      pend_cap_ = std::max(pend_cap_, pend_new);
+      list_cap_ = std::max(list_cap_, list_new);
       alloc_prop_lists();
       x_.full_reset(L_);
       x_.zero(L_.wave, static_cast<std::size_t>(L_.nbricks));
