@@ -22,7 +22,7 @@ struct SolverParams {
   int brick_size = 8;              ///< 4, 8 or 16 (CPU bricks for sparse work)
   int relax_sweeps = 8;            ///< K, [0, 256]
   float relax_threshold = 1e-4f;   ///< [0, 1) lattice units: smaller corrections are skipped
-  float relax_omega = 1.7f;        ///< over-relaxation of each step, [1, 1.95] (1 = Gauss-Seidel)
+  float relax_omega = 1.85f;       ///< over-relaxation of each step, [1, 1.95] (1 = Gauss-Seidel)
   AnchorMode anchors = AnchorMode::Bone;
   int max_propagation_sweeps = 100000;  ///< safety cap, [1, 10^7]
   void validate() const;
@@ -31,8 +31,8 @@ struct SolverParams {
 
 struct DynamicsParams {
   DampingMode mode = DampingMode::Viscoelastic;
-  float alpha = 0.95f;                       ///< simple damping, [0, 1]
-  float b0 = 0.05f;                          ///< viscoelastic constant term, [0, 1]
+  float alpha = 0.98f;                       ///< simple damping, [0, 1]
+  float b0 = 0.02f;                          ///< viscoelastic constant term, [0, 1]
   PerTissue b1{0.0f, 0.05f, 0.05f, 0.05f};      ///< viscoelastic displacement term, [0, 1]; air 0
   PerTissue inverse_mass{1.0f, 1.0f, 0.05f, 0.0f};  ///< >= 0, at least one > 0
   float s_min = 0.0f, s_max = 1.0f;          ///< response-scale clamp, 0 <= s_min <= s_max <= 1
