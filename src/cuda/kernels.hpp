@@ -674,6 +674,22 @@ struct LayerArgs {
   LayerCtl* ctl = nullptr;
 };
 
+/// Per-tissue speed sums and maxima and a count, one entry per thread of the block, reduced
+/// into entry 0 as a fixed-shape tree (deterministic run to run). T is a power of two <= N.
+template <class B, class S, class M, class C, int N>
+HPCM_HD void tree_reduce_speeds(B& blk, int T, S (&sum)[kTissueCount][N], M (&max)[kTissueCount][N], C (&cnt)[N]) {
+  for (int h = T / 2; h > 0; h /= 2)
+    blk.each([&](int tid) {
+      if (tid < h) {
+        for (int t = 0; t < kTissueCount; ++t) {
+          sum[t][tid] += sum[t][tid + h];
+          max[t][tid] = max[t][tid] > max[t][tid + h] ? max[t][tid] : max[t][tid + h];
+        }
+        cnt[tid] += cnt[tid + h];
+      }
+    });
+}
+
 struct LayerShared {
   int anyv, moved;
   float sum[kTissueCount][kBrickThreads];
@@ -744,18 +760,7 @@ HPCM_HD void layer_block(const LayerArgs& a, long long b, LayerShared& sh, B& bl
       sh.cnt[tid] = lc;
     }
   });
-  if (a.speeds) {  // fixed-shape tree: deterministic run to run
-    for (int h = T / 2; h > 0; h /= 2)
-      blk.each([&](int tid) {
-        if (tid < h) {
-          for (int t = 0; t < kTissueCount; ++t) {
-            sh.sum[t][tid] += sh.sum[t][tid + h];
-            sh.max[t][tid] = sh.max[t][tid] > sh.max[t][tid + h] ? sh.max[t][tid] : sh.max[t][tid + h];
-          }
-          sh.cnt[tid] += sh.cnt[tid + h];
-        }
-      });
-  }
+  if (a.speeds) tree_reduce_speeds(blk, T, sh.sum, sh.max, sh.cnt);
   blk.each([&](int tid) {
     if (tid == 0) {
       L.has_vel[b] = sh.anyv ? 1 : 0;
@@ -801,16 +806,7 @@ HPCM_HD void speed_sum_block(const LayerArgs& a, SpeedShared& sh, B& blk) {
     }
     sh.moved[tid] = mv;
   });
-  for (int h = T / 2; h > 0; h /= 2)
-    blk.each([&](int tid) {
-      if (tid < h) {
-        for (int t = 0; t < kTissueCount; ++t) {
-          sh.sum[t][tid] += sh.sum[t][tid + h];
-          sh.max[t][tid] = sh.max[t][tid] > sh.max[t][tid + h] ? sh.max[t][tid] : sh.max[t][tid + h];
-        }
-        sh.moved[tid] += sh.moved[tid + h];
-      }
-    });
+  tree_reduce_speeds(blk, T, sh.sum, sh.max, sh.moved);
   blk.each([&](int tid) {
     if (tid == 0) {
       for (int t = 0; t < kTissueCount; ++t) {

@@ -20,6 +20,20 @@
 
 namespace hpcm::solver {
 
+/// Calls f(n, axis, side, link) for each face neighbour n of element i = (x, y, z), always in
+/// the order -x, +x, -y, +y, -z, +z (so sums over neighbours are reproducible). side is +1 when
+/// i lies on the + side of n; link is the limits of the link between them.
+template <class F>
+inline void for_each_face_neighbour(const Model& m, int x, int y, int z, Index i, F&& f) {
+  const Index sy = m.dims.x, sz = static_cast<Index>(m.dims.x) * m.dims.y;
+  if (x > 0) f(i - 1, 0, +1, m.link[0][i - 1]);
+  if (x + 1 < m.dims.x) f(i + 1, 0, -1, m.link[0][i]);
+  if (y > 0) f(i - sy, 1, +1, m.link[1][i - sy]);
+  if (y + 1 < m.dims.y) f(i + sy, 1, -1, m.link[1][i]);
+  if (z > 0) f(i - sz, 2, +1, m.link[2][i - sz]);
+  if (z + 1 < m.dims.z) f(i + sz, 2, -1, m.link[2][i]);
+}
+
 class ChainMailCpu {
  public:
   void init(const Model& m, int brick_size);

@@ -31,19 +31,10 @@ void ChainMailCpu::init(const Model& m, int brick_size) {
 }
 
 int ChainMailCpu::gather(const Model& m, const Vec3* pos, const float* time, int x, int y, int z, Index i, Neighbour* nb) {
-  const int nx = m.dims.x, ny = m.dims.y, nz = m.dims.z;
-  const Index sy = nx, sz = static_cast<Index>(nx) * ny;
   int c = 0;
-  auto add = [&](Index n, int axis, int side, const LinkLimits& L) {
+  for_each_face_neighbour(m, x, y, z, i, [&](Index n, int axis, int side, const LinkLimits& L) {
     nb[c++] = Neighbour{n, axis, side, L, time[n], m.tau[n], pos[n]};
-  };
-  // Fixed neighbour order (-x, +x, -y, +y, -z, +z): sums are reproducible.
-  if (x > 0) add(i - 1, 0, +1, m.link[0][i - 1]);
-  if (x + 1 < nx) add(i + 1, 0, -1, m.link[0][i]);
-  if (y > 0) add(i - sy, 1, +1, m.link[1][i - sy]);
-  if (y + 1 < ny) add(i + sy, 1, -1, m.link[1][i]);
-  if (z > 0) add(i - sz, 2, +1, m.link[2][i - sz]);
-  if (z + 1 < nz) add(i + sz, 2, -1, m.link[2][i]);
+  });
   return c;
 }
 
@@ -59,24 +50,16 @@ PropagateStats ChainMailCpu::propagate(const Model& m, std::vector<Vec3>& pos, c
   }
   reached_.clear();
   for (auto& b : buckets_) b.clear();
-  const int nx = m.dims.x, ny = m.dims.y, nz = m.dims.z;
-  const Index sy = nx, sz = static_cast<Index>(nx) * ny;
   const double delta = delta_;
   auto bucket = [&](float t) { return static_cast<std::size_t>(bucket_of(t, delta)); };
   auto push_neighbours = [&](Index i, float t) {
     const Int3 c = m.coords(i);
-    auto push = [&](Index n, float w) {
+    for_each_face_neighbour(m, c.x, c.y, c.z, i, [&](Index n, int, int, const LinkLimits& L) {
       if (final_[n] || (flags[n] & kFixed)) return;
-      const std::size_t b = bucket(t + w);
+      const std::size_t b = bucket(t + L.w);
       if (b >= buckets_.size()) buckets_.resize(b + 1);
       buckets_[b].push_back(n);
-    };
-    if (c.x > 0) push(i - 1, m.link[0][i - 1].w);
-    if (c.x + 1 < nx) push(i + 1, m.link[0][i].w);
-    if (c.y > 0) push(i - sy, m.link[1][i - sy].w);
-    if (c.y + 1 < ny) push(i + sy, m.link[1][i].w);
-    if (c.z > 0) push(i - sz, m.link[2][i - sz].w);
-    if (c.z + 1 < nz) push(i + sz, m.link[2][i].w);
+    });
   };
   for (Index f : fixed) {
     time[f] = 0.0f;

@@ -17,8 +17,6 @@ namespace {
 // to the general rule with its conflict handling.
 inline bool relax_fast(const Model& m, const float* W, const Vec3* pos, int x, int y, int z, Index i, float omega,
                        Vec3& out) {
-  const int nx = m.dims.x, ny = m.dims.y, nz = m.dims.z;
-  const Index sy = nx, sz = static_cast<Index>(nx) * ny;
   float sx = 0, sY = 0, sZ = 0, sw = 0;
   float lo[3] = {-kInf, -kInf, -kInf}, hi[3] = {kInf, kInf, kInf};
   int count = 0;
@@ -39,12 +37,7 @@ inline bool relax_fast(const Model& m, const float* W, const Vec3* pos, int x, i
       hi[b] = hi[b] < h ? hi[b] : h;
     }
   };
-  if (x > 0) visit(i - 1, 0, +1, m.link[0][i - 1]);
-  if (x + 1 < nx) visit(i + 1, 0, -1, m.link[0][i]);
-  if (y > 0) visit(i - sy, 1, +1, m.link[1][i - sy]);
-  if (y + 1 < ny) visit(i + sy, 1, -1, m.link[1][i]);
-  if (z > 0) visit(i - sz, 2, +1, m.link[2][i - sz]);
-  if (z + 1 < nz) visit(i + sz, 2, -1, m.link[2][i]);
+  for_each_face_neighbour(m, x, y, z, i, visit);
   if (count == 0 || lo[0] > hi[0] || lo[1] > hi[1] || lo[2] > hi[2]) return false;
   const Vec3 avg{sx / sw, sY / sw, sZ / sw};
   const Vec3 cur = pos[i];
@@ -55,71 +48,9 @@ inline bool relax_fast(const Model& m, const float* W, const Vec3* pos, int x, i
   return true;
 }
 
-// One neighbour of an interior element, as relax_fast's visit() with the axis and side known at
-// compile time: the same floats in the same order (prop = pn + side on the axis; w * prop
-// summed per component; box limits from link_interval; lo = lo > l ? lo : l, hi = hi < h ? hi : h).
-// `first`: the running limits are still -inf / +inf, where the max/min gives l / h exactly.
-template <int A, int S, bool First>
-inline void visit_interior(const Vec3& pn, float w, const LinkLimits& L, float& sx, float& sY, float& sZ, float& sw,
-                           float* lo, float* hi) {
-  const float px = A == 0 ? pn.x + static_cast<float>(S) : pn.x;
-  const float py = A == 1 ? pn.y + static_cast<float>(S) : pn.y;
-  const float pz = A == 2 ? pn.z + static_cast<float>(S) : pn.z;
-  sx += w * px;
-  sY += w * py;
-  sZ += w * pz;
-  sw += w;
-  const float c[3] = {pn.x, pn.y, pn.z};
-  for (int b = 0; b < 3; ++b) {
-    float l, h;
-    if (b == A) {
-      if (S > 0) {
-        l = c[b] + L.min_d;
-        h = c[b] + L.max_d;
-      } else {
-        l = c[b] - L.max_d;
-        h = c[b] - L.min_d;
-      }
-    } else {
-      l = c[b] - L.shear;
-      h = c[b] + L.shear;
-    }
-    if (First) {
-      lo[b] = l;  // -inf > l ? -inf : l is l for every l (NaN included)
-      hi[b] = h;  // +inf < h ? +inf : h is h for every h
-    } else {
-      lo[b] = lo[b] > l ? lo[b] : l;
-      hi[b] = hi[b] < h ? hi[b] : h;
-    }
-  }
-}
-
-// relax_fast for an element with all six neighbours (0 < x < nx-1, same for y and z): no
-// bounds tests, bit for bit the same result.
-inline bool relax_interior(const LinkLimits* L0, const LinkLimits* L1, const LinkLimits* L2, const float* W,
-                           const Vec3* pos, Index i, Index sy, Index sz, float omega, Vec3& out) {
-  float sx = 0, sY = 0, sZ = 0, sw = 0;
-  float lo[3], hi[3];
-  visit_interior<0, +1, true>(pos[i - 1], W[i - 1], L0[i - 1], sx, sY, sZ, sw, lo, hi);
-  visit_interior<0, -1, false>(pos[i + 1], W[i + 1], L0[i], sx, sY, sZ, sw, lo, hi);
-  visit_interior<1, +1, false>(pos[i - sy], W[i - sy], L1[i - sy], sx, sY, sZ, sw, lo, hi);
-  visit_interior<1, -1, false>(pos[i + sy], W[i + sy], L1[i], sx, sY, sZ, sw, lo, hi);
-  visit_interior<2, +1, false>(pos[i - sz], W[i - sz], L2[i - sz], sx, sY, sZ, sw, lo, hi);
-  visit_interior<2, -1, false>(pos[i + sz], W[i + sz], L2[i], sx, sY, sZ, sw, lo, hi);
-  if (lo[0] > hi[0] || lo[1] > hi[1] || lo[2] > hi[2]) return false;
-  const Vec3 avg{sx / sw, sY / sw, sZ / sw};
-  const Vec3 cur = pos[i];
-  const Vec3 target = omega == 1.0f ? avg
-                                    : Vec3{cur.x + omega * (avg.x - cur.x), cur.y + omega * (avg.y - cur.y),
-                                           cur.z + omega * (avg.z - cur.z)};
-  out.x = clampf(target.x, lo[0], hi[0]);
-  out.y = clampf(target.y, lo[1], hi[1]);
-  out.z = clampf(target.z, lo[2], hi[2]);
-  return true;
-}
-
 #if defined(__SSE2__)
-// relax_interior with the three components in one SSE register, bit for bit the same floats:
+// relax_fast for an element with all six neighbours (0 < x < nx-1, same for y and z): no
+// bounds tests, and the three components in one SSE register, bit for bit the same floats:
 // each lane does the scalar operations in the same order, and
 //  * prop = pn + (side on the axis lane, +0 on the others): pn + 0 differs from pn only for
 //    pn = -0 (gives +0), and the sum sx = 0 + w*prop_1 + ... can never be -0 (a sum of
@@ -163,10 +94,9 @@ inline void visit_sse(const Vec3* pos, const float* W, const LinkLimits* link, I
   }
 }
 
-// Returns false on an empty intersection (caller falls back). On success writes the new
-// position to out and the correction length to corr.
+// Returns false on an empty intersection (caller falls back to the general rule).
 inline bool relax_interior_sse(const LinkLimits* L0, const LinkLimits* L1, const LinkLimits* L2, const float* W,
-                               const Vec3* pos, Index i, Index sy, Index sz, float omega, Vec3& out, float& corr) {
+                               const Vec3* pos, Index i, Index sy, Index sz, float omega, Vec3& out) {
   __m128 sum = _mm_setzero_ps(), lo, hi;
   float sw = 0;
   visit_sse<0, +1, true>(pos, W, L0, i - 1, i - 1, sum, sw, lo, hi);
@@ -180,12 +110,8 @@ inline bool relax_interior_sse(const LinkLimits* L0, const LinkLimits* L1, const
   const __m128 cur = _mm_loadu_ps(&pos[i].x);
   const __m128 target = omega == 1.0f ? avg : _mm_add_ps(cur, _mm_mul_ps(_mm_set1_ps(omega), _mm_sub_ps(avg, cur)));
   const __m128 p = _mm_max_ps(lo, _mm_min_ps(hi, target));
-  const __m128 d = _mm_sub_ps(p, cur);
-  const __m128 dd = _mm_mul_ps(d, d);
-  float q[4], r[4];
-  _mm_storeu_ps(q, dd);
+  float r[4];
   _mm_storeu_ps(r, p);
-  corr = std::sqrt(q[0] + q[1] + q[2]);
   out = Vec3{r[0], r[1], r[2]};
   return true;
 }
@@ -208,36 +134,25 @@ struct RelaxCtx {
 inline float relax_brick(const RelaxCtx& c, Index b, int colour, bool& any) {
   const Model& m = *c.m;
   const int nx = m.dims.x, ny = m.dims.y, nz = m.dims.z;
-  const Index sy = nx, sz = static_cast<Index>(nx) * ny;
+  [[maybe_unused]] const Index sy = nx, sz = static_cast<Index>(nx) * ny;  // SSE path only
   Int3 lo, hi;
   c.grid->range(b, lo, hi);
   Neighbour nb[6];
   float max_corr = 0.0f;
   for (int z = lo.z; z < hi.z; ++z)
     for (int y = lo.y; y < hi.y; ++y) {
-      const bool yz_interior = y > 0 && y + 1 < ny && z > 0 && z + 1 < nz;
+      [[maybe_unused]] const bool yz_interior = y > 0 && y + 1 < ny && z > 0 && z + 1 < nz;
       int x = lo.x + ((lo.x + y + z + colour) & 1);
       Index i = m.index(x, y, z);
       for (; x < hi.x; x += 2, i += 2) {
         if (c.F[i] & kFixed) continue;
         Vec3 p;
-        const bool interior = yz_interior && x > 0 && x + 1 < nx;
 #if defined(__SSE2__)
-        if (interior) {
-          float corr;
-          if (relax_interior_sse(c.L0, c.L1, c.L2, c.W, c.P, i, sy, sz, c.omega, p, corr)) {
-            if (!(corr >= c.threshold) || corr == 0.0f) continue;  // small corrections are skipped
-            c.P[i] = p;
-            any = true;
-            max_corr = std::max(max_corr, corr);
-            continue;
-          }
-          // else: conflicting boxes, the general rule below
-        }
-        const bool ok = !interior && relax_fast(m, c.W, c.P, x, y, z, i, c.omega, p);
-#else
-        const bool ok = interior ? relax_interior(c.L0, c.L1, c.L2, c.W, c.P, i, sy, sz, c.omega, p)
+        const bool interior = yz_interior && x > 0 && x + 1 < nx;
+        const bool ok = interior ? relax_interior_sse(c.L0, c.L1, c.L2, c.W, c.P, i, sy, sz, c.omega, p)
                                  : relax_fast(m, c.W, c.P, x, y, z, i, c.omega, p);
+#else
+        const bool ok = relax_fast(m, c.W, c.P, x, y, z, i, c.omega, p);
 #endif
         if (!ok) {
           // Conflicting boxes (or an isolated element): the general rule decides.
