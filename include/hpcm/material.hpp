@@ -45,6 +45,8 @@ struct MaterialTable {
   float w(float hu) const;
   /// Link between two elements: values at the pair's mean HU (symmetric).
   LinkLimits link(float hu_a, float hu_b) const;
+  /// Limits of a link whose pair has mean HU `hu`.
+  LinkLimits link_at(float hu) const { return limits_from_tau(tau(hu), w(hu)); }
   friend bool operator==(const MaterialTable&, const MaterialTable&) = default;
 };
 

@@ -66,15 +66,15 @@ inline bool relax_fast(const Model& m, const float* W, const Vec3* pos, int x, i
 // interior element (n <= i + sz and i <= size - 2). That element may be one of the colour being
 // written by another thread at the same moment: its value lands in lane 3 and is never used.
 template <int A, int S>
-inline void visit_sse(const Vec3* pos, const float* W, const LinkLimits* link, Index n, Index li, __m128& sum,
-                      float& sw, __m128& lo, __m128& hi) {
+inline void visit_sse(const Vec3* pos, const float* W, const std::uint16_t* link, const LinkLimits* table, Index n,
+                      Index li, __m128& sum, float& sw, __m128& lo, __m128& hi) {
   const __m128 pn = _mm_loadu_ps(&pos[n].x);
   const float w = W[n];
   const __m128 side = _mm_setr_ps(A == 0 ? float(S) : 0.0f, A == 1 ? float(S) : 0.0f, A == 2 ? float(S) : 0.0f, 0.0f);
   const __m128 prop = _mm_add_ps(pn, side);
   sum = _mm_add_ps(sum, _mm_mul_ps(_mm_set1_ps(w), prop));
   sw += w;
-  const __m128 L = _mm_loadu_ps(&link[li].min_d);  // min_d, max_d, shear, w
+  const __m128 L = _mm_loadu_ps(&table[link[li]].min_d);  // min_d, max_d, shear, w
   // Offsets added to pn: S > 0: lo = c + min_d, hi = c + max_d on the axis;
   // S < 0: lo = c + (-max_d), hi = c + (-min_d); off the axis lo = c + (-shear), hi = c + shear.
   constexpr int lo_src = S > 0 ? 0 : 1, hi_src = S > 0 ? 1 : 0;
@@ -92,18 +92,18 @@ inline void visit_sse(const Vec3* pos, const float* W, const LinkLimits* link, I
 }
 
 // Returns false on an empty intersection (caller falls back to the general rule).
-inline bool relax_interior_sse(const LinkLimits* L0, const LinkLimits* L1, const LinkLimits* L2, const float* W,
-                               const Vec3* pos, Index i, Index sy, Index sz, float omega, const Wall& wall, Vec3& out) {
+inline bool relax_interior_sse(const std::uint16_t* L0, const std::uint16_t* L1, const std::uint16_t* L2,
+                               const LinkLimits* T, const float* W, const Vec3* pos, Index i, Index sy, Index sz, float omega, const Wall& wall, Vec3& out) {
   __m128 sum = _mm_setzero_ps();
   __m128 lo = _mm_setr_ps(wall.lo[0], wall.lo[1], wall.lo[2], 0.0f);
   __m128 hi = _mm_setr_ps(wall.hi[0], wall.hi[1], wall.hi[2], 0.0f);
   float sw = 0;
-  visit_sse<0, +1>(pos, W, L0, i - 1, i - 1, sum, sw, lo, hi);
-  visit_sse<0, -1>(pos, W, L0, i + 1, i, sum, sw, lo, hi);
-  visit_sse<1, +1>(pos, W, L1, i - sy, i - sy, sum, sw, lo, hi);
-  visit_sse<1, -1>(pos, W, L1, i + sy, i, sum, sw, lo, hi);
-  visit_sse<2, +1>(pos, W, L2, i - sz, i - sz, sum, sw, lo, hi);
-  visit_sse<2, -1>(pos, W, L2, i + sz, i, sum, sw, lo, hi);
+  visit_sse<0, +1>(pos, W, L0, T, i - 1, i - 1, sum, sw, lo, hi);
+  visit_sse<0, -1>(pos, W, L0, T, i + 1, i, sum, sw, lo, hi);
+  visit_sse<1, +1>(pos, W, L1, T, i - sy, i - sy, sum, sw, lo, hi);
+  visit_sse<1, -1>(pos, W, L1, T, i + sy, i, sum, sw, lo, hi);
+  visit_sse<2, +1>(pos, W, L2, T, i - sz, i - sz, sum, sw, lo, hi);
+  visit_sse<2, -1>(pos, W, L2, T, i + sz, i, sum, sw, lo, hi);
   if (_mm_movemask_ps(_mm_cmpgt_ps(lo, hi)) & 7) return false;
   const __m128 avg = _mm_div_ps(sum, _mm_set1_ps(sw));
   const __m128 cur = _mm_loadu_ps(&pos[i].x);
@@ -120,7 +120,8 @@ inline bool relax_interior_sse(const LinkLimits* L0, const LinkLimits* L1, const
 struct RelaxCtx {
   const Model* m;
   const BrickGrid* grid;
-  const LinkLimits *L0, *L1, *L2;
+  const std::uint16_t *L0, *L1, *L2;
+  const LinkLimits* T;
   const float* W;
   const float* time;
   const std::uint8_t* F;
@@ -149,7 +150,7 @@ inline float relax_brick(const RelaxCtx& c, Index b, int colour, bool& any) {
         Vec3 p;
 #if defined(__SSE2__)
         const bool interior = yz_interior && x > 0 && x + 1 < nx;
-        const bool ok = interior ? relax_interior_sse(c.L0, c.L1, c.L2, c.W, c.P, i, sy, sz, c.omega, c.wall, p)
+        const bool ok = interior ? relax_interior_sse(c.L0, c.L1, c.L2, c.T, c.W, c.P, i, sy, sz, c.omega, c.wall, p)
                                  : relax_fast(m, c.W, c.P, x, y, z, i, c.omega, c.wall, p);
 #else
         const bool ok = relax_fast(m, c.W, c.P, x, y, z, i, c.omega, c.wall, p);
@@ -182,7 +183,7 @@ RelaxStats ChainMailCpu::relax(const Model& m, std::vector<Vec3>& pos, const std
   RelaxStats st;
   Index active_max = 0;  // this call only; the backend combines it with propagation's
   std::vector<std::uint8_t>& work = hot_;
-  const RelaxCtx ctx{&m,         &grid_,      m.link[0].data(), m.link[1].data(), m.link[2].data(),
+  const RelaxCtx ctx{&m,         &grid_,      m.link_index[0].data(), m.link_index[1].data(), m.link_index[2].data(), m.link_table.data(),
                      weight_.data(), time.data(), flags.data(),     pos.data(),       threshold,
                      omega,      wall_};
   for (int s = 0; s < sweeps; ++s) {

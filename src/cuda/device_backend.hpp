@@ -30,34 +30,6 @@ struct Ctl {
   LayerCtl layer;
 };
 
-/// Tolerance of the link between i and its + neighbour along a: the material's tau at the
-/// pair's mean HU (MaterialTable::link, same float operations).
-inline float link_tau(const Model& m, const MaterialTable& mat, Index i, int a) {
-  const Index sx[3] = {1, m.dims.x, static_cast<Index>(m.dims.x) * m.dims.y};
-  const float mean = 0.5f * (m.hu[static_cast<std::size_t>(i)] + m.hu[static_cast<std::size_t>(i + sx[a])]);
-  return mat.tau(mean);
-}
-
-/// Compact links reproduce the CPU Model bit for bit when every link is
-/// limits_from_tau(tau, w) of the model's material at the pair's mean HU; otherwise explicit
-/// limits are stored.
-inline bool compact_links_match(const Model& m, const MaterialTable& table, const MaterialW& mat) {
-  const Index sx[3] = {1, m.dims.x, static_cast<Index>(m.dims.x) * m.dims.y};
-  const int d[3] = {m.dims.x, m.dims.y, m.dims.z};
-  for (Index i = 0; i < m.size(); ++i) {
-    const Int3 c = m.coords(i);
-    const int ca[3] = {c.x, c.y, c.z};
-    for (int a = 0; a < 3; ++a) {
-      if (ca[a] + 1 >= d[a]) continue;
-      const LinkLimits& L = m.link[a][static_cast<std::size_t>(i)];
-      const float mean = 0.5f * (m.hu[static_cast<std::size_t>(i)] + m.hu[static_cast<std::size_t>(i + sx[a])]);
-      const LinkLimits r = limits_from_tau(link_tau(m, table, i, a), material_w(mat, mean));
-      if (std::memcmp(&r, &L, sizeof r) != 0) return false;
-    }
-  }
-  return true;
-}
-
 /// Largest propagation list capacities (entries): pend + 6 * list < 2^31 (int counters).
 inline constexpr std::size_t kMaxPendCap = std::numeric_limits<int>::max() / 2;
 inline constexpr std::size_t kMaxListCap = std::numeric_limits<int>::max() / 16;
@@ -81,8 +53,6 @@ class DeviceBackend final : public Backend {
 
   BackendKind kind() const override { return BackendKind::Cuda; }
   X& exec() { return x_; }
-  /// True when links are rebuilt on the fly (62 bytes per element); false: explicit limits.
-  bool compact_links() const { return compact_; }
   std::size_t device_bytes() const { return held_; }
   /// Test hook: initial capacities of the propagation lists (pending pushes, one bucket) for the
   /// next load(); 0 = the defaults. Small values force the grow-and-rerun path.
@@ -117,17 +87,6 @@ class DeviceBackend final : public Backend {
     L_.n = n;
     L_.grid.init(m.dims, p.solver.brick_size);
 
-    // Material w(HU) for on-the-fly links.
-    const auto& pts = p.material.points;
-    compact_ = pts.size() <= static_cast<std::size_t>(kMaxMaterialPoints);
-    if (compact_) {
-      L_.mat.n = static_cast<int>(pts.size());
-      for (std::size_t k = 0; k < pts.size(); ++k) {
-        L_.mat.hu[k] = pts[k].hu;
-        L_.mat.w[k] = pts[k].w;
-      }
-      compact_ = compact_links_match(m, p.material, L_.mat);
-    }
 
     const std::size_t N = static_cast<std::size_t>(n), NB = static_cast<std::size_t>(L_.grid.count);
     const std::size_t N4 = (N + 3) / 4 * 4;
@@ -138,12 +97,8 @@ class DeviceBackend final : public Backend {
     L_.flags = alloc<std::uint8_t>(N4, "flags");
     L_.tau = alloc<float>(N, "element tolerances");
     L_.tissue = alloc<std::uint8_t>(N, "tissue classes");
-    if (compact_) {
-      L_.hu = alloc<float>(N, "HU");
-      for (int a = 0; a < 3; ++a) L_.ltau[a] = alloc<float>(N, "link tolerances");
-    } else {
-      for (int a = 0; a < 3; ++a) L_.link[a] = alloc<LinkLimits>(N, "link limits");
-    }
+    for (int a = 0; a < 3; ++a) L_.link_index[a] = alloc<std::uint16_t>(N, "link indices");
+    L_.link_table = alloc<LinkLimits>(m.link_table.size(), "link table");
     L_.touched = alloc<std::uint8_t>(NB, "brick flags");
     L_.hot = alloc<std::uint8_t>(NB, "brick flags");
     L_.changed = alloc<std::uint8_t>(NB, "brick flags");
@@ -169,16 +124,9 @@ class DeviceBackend final : public Backend {
     std::vector<float> buf(N);
     x_.upload(const_cast<float*>(L_.tau), m.tau.data(), N * sizeof(float));
     x_.upload(const_cast<std::uint8_t*>(L_.tissue), m.tissue.data(), N);
-    if (compact_) {
-      x_.upload(const_cast<float*>(L_.hu), m.hu.data(), N * sizeof(float));
-      for (int a = 0; a < 3; ++a) {
-        const int da[3] = {m.dims.x, m.dims.y, m.dims.z};
-        for (std::size_t i = 0; i < N; ++i) buf[i] = m.coords(static_cast<Index>(i))[a] + 1 < da[a] ? link_tau(m, p.material, static_cast<Index>(i), a) : 0.0f;
-        x_.upload(const_cast<float*>(L_.ltau[a]), buf.data(), N * sizeof(float));
-      }
-    } else {
-      for (int a = 0; a < 3; ++a) x_.upload(const_cast<LinkLimits*>(L_.link[a]), m.link[a].data(), N * sizeof(LinkLimits));
-    }
+    for (int a = 0; a < 3; ++a)
+      x_.upload(const_cast<std::uint16_t*>(L_.link_index[a]), m.link_index[a].data(), N * sizeof(std::uint16_t));
+    x_.upload(const_cast<LinkLimits*>(L_.link_table), m.link_table.data(), m.link_table.size() * sizeof(LinkLimits));
     x_.upload(L_.pos, s.pos.data(), N * sizeof(Vec3));
     x_.upload(L_.pre, s.pos.data(), N * sizeof(Vec3));  // invariant between frames: X- == X
     x_.upload(L_.vel, s.vel.data(), N * sizeof(Vec3));
@@ -574,7 +522,6 @@ class DeviceBackend final : public Backend {
   Params p_;
   dynamics::LayerConstants k_{};
   Lattice L_{};
-  bool compact_ = true;
   float delta_ = 1.0f;
   // link restoration on the host (restore_links)
   solver::LinkRestorer restorer_;

@@ -11,7 +11,7 @@
 // The per-element rules are not repeated here: they come from solver/rules.hpp (propagation,
 // relaxation, deformation boxes) and dynamics/velocity_update.hpp (the velocity layer), which are
 // HPCM_HD and shared with the CPU backend. What is here is the schedule: buckets, brick lists,
-// red-black colouring, reductions, and the compact per-element memory layout.
+// red-black colouring, reductions, and the per-element memory layout.
 #include <cstdint>
 
 #include "dynamics/velocity_update.hpp"
@@ -31,7 +31,6 @@ inline constexpr std::uint8_t kFinalBit = 0x80;   ///< decided in the current wa
 inline constexpr std::uint8_t kListedBit = 0x40;  ///< in the current bucket's list
 inline constexpr std::uint8_t kInternalBits = kFinalBit | kListedBit;
 
-inline constexpr int kMaxMaterialPoints = 16;  ///< compact links: control points in kernel params
 inline constexpr int kMaxSweeps = 256;         ///< SolverParams::relax_sweeps upper bound
 inline constexpr int kPropThreads = 512;       ///< the single-block propagation kernel
 inline constexpr int kBrickThreads = 256;      ///< brick kernels (relaxation, velocity layer)
@@ -95,32 +94,12 @@ HPCM_HD inline float bits_float(unsigned u) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Lattice on the device: compact per-element layout
+// Lattice on the device
 // ---------------------------------------------------------------------------------------------
 
-/// The material's w(HU) control points (MaterialTable::w, reproduced operation by operation).
-struct MaterialW {
-  int n = 0;
-  float hu[kMaxMaterialPoints];
-  float w[kMaxMaterialPoints];
-};
-
-/// Same float operations as MaterialTable::w (src/core/material.cpp, interpolate()).
-HPCM_HD inline float material_w(const MaterialW& m, float hu) {
-  if (hu <= m.hu[0]) return m.w[0];
-  if (hu >= m.hu[m.n - 1]) return m.w[m.n - 1];
-  for (int k = 1; k < m.n; ++k)
-    if (hu <= m.hu[k]) {
-      const float u = (hu - m.hu[k - 1]) / (m.hu[k] - m.hu[k - 1]);
-      return m.w[k - 1] + u * (m.w[k] - m.w[k - 1]);
-    }
-  return m.w[m.n - 1];
-}
-
 /// Device pointers and geometry, passed by value to every kernel.
-/// Per element (compact links): pos, pre, vel 3 x 12 B, time 4, hu 4, tau 4, ltau 3 x 4,
-/// tissue 1, flags 1 = 62 bytes. Link limits are rebuilt on the fly from the link's tolerance
-/// (stored exactly as the CPU Model has it) and w from the pair's mean HU (MaterialW).
+/// Per element: pos, pre, vel 3 x 12 B, time 4, tau 4, link index 3 x 2, tissue 1, flags 1
+/// = 52 bytes, plus the Model's link table (at most 65,536 x 16 bytes).
 struct Lattice {
   int nx = 0, ny = 0, nz = 0;
   long long n = 0;
@@ -130,12 +109,10 @@ struct Lattice {
   Vec3* vel = nullptr;   ///< V
   float* time = nullptr;
   std::uint8_t* flags = nullptr;  ///< ElementFlags | internal bits; 4-byte aligned, padded
-  const float* hu = nullptr;
   const float* tau = nullptr;     ///< element tolerance (relaxation weights)
   const std::uint8_t* tissue = nullptr;
-  const float* ltau[3] = {nullptr, nullptr, nullptr};        ///< compact links: tau at mean HU
-  const LinkLimits* link[3] = {nullptr, nullptr, nullptr};   ///< explicit links (fallback)
-  MaterialW mat;
+  const std::uint16_t* link_index[3] = {nullptr, nullptr, nullptr};  ///< Model::link_index
+  const LinkLimits* link_table = nullptr;                            ///< Model::link_table
   // per brick
   std::uint8_t* touched = nullptr;  ///< positions changed this frame (velocity layer must visit)
   std::uint8_t* hot = nullptr;      ///< relaxation must look at it (and its face neighbours)
@@ -160,11 +137,7 @@ struct Lattice {
     hi[0] = h.x, hi[1] = h.y, hi[2] = h.z;
   }
   /// Limits of the link along axis a between element lo and its + neighbour hi.
-  HPCM_HD LinkLimits link_of(int a, long long lo, long long hi) const {
-    if (link[a]) return link[a][lo];
-    const float mean = 0.5f * (this->hu[lo] + this->hu[hi]);  // MaterialTable::link
-    return limits_from_tau(ltau[a][lo], material_w(mat, mean));
-  }
+  HPCM_HD LinkLimits link_of(int a, long long lo, long long) const { return link_table[link_index[a][lo]]; }
 };
 
 /// ChainMailCpu::gather on the device layout: the shared face-neighbour walk.

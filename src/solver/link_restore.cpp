@@ -87,7 +87,7 @@ RestoreStats LinkRestorer::run(const Model& m, const BrickGrid& grid, const std:
             }
             if (c[a] + 1 >= d[a]) continue;
             const Index n = e + sx[a];
-            const float v = link_violation(pos[e], pos[n], m.link[a][e], a);
+            const float v = link_violation(pos[e], pos[n], m.link(a, e), a);
             if (v > kRestoreTolerance) {
               ++st.violated_links;
               st.max_violation = std::max(st.max_violation, v);

@@ -24,7 +24,7 @@ HPCM_HD inline void for_each_face_neighbour(int nx, int ny, int nz, int x, int y
 template <class F>
 inline void for_each_face_neighbour(const Model& m, int x, int y, int z, Index i, F&& f) {
   for_each_face_neighbour(m.dims.x, m.dims.y, m.dims.z, x, y, z, i,
-                          [&](Index n, int axis, int side, Index lo, Index) { f(n, axis, side, m.link[axis][lo]); });
+                          [&](Index n, int axis, int side, Index lo, Index) { f(n, axis, side, m.link(axis, lo)); });
 }
 
 }  // namespace hpcm::solver

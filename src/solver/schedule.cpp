@@ -15,7 +15,7 @@ float bucket_width(const Model& m) {
     for (Index i = 0; i < m.size(); ++i) {
       const Int3 c = m.coords(i);
       const int ca[3] = {c.x, c.y, c.z};
-      if (ca[a] + 1 < dims[a]) d = std::min(d, m.link[a][static_cast<std::size_t>(i)].w);
+      if (ca[a] + 1 < dims[a]) d = std::min(d, m.link(a, i).w);
     }
   }
   return std::isfinite(d) ? d : 1.0f;

@@ -18,10 +18,10 @@ int neighbours(const Model& m, Index e, Neighbour out[6]) {
   for (int a = 0; a < 3; ++a) {
     if (cc[a] > 0) {  // n = e - unit_a: e on the + side, link stored at n
       const Index n = e - stride[a];
-      out[k++] = {n, a, true, m.link[a][static_cast<std::size_t>(n)]};
+      out[k++] = {n, a, true, m.link(a, n)};
     }
     if (cc[a] < d[a] - 1) {  // n = e + unit_a: e on the - side, link stored at e
-      out[k++] = {e + stride[a], a, false, m.link[a][static_cast<std::size_t>(e)]};
+      out[k++] = {e + stride[a], a, false, m.link(a, e)};
     }
   }
   return k;
@@ -183,7 +183,7 @@ RuleResult evaluate_rule(const Model& m, Index e, const std::vector<Vec3>& p0, c
 
 float link_violation(const Model& m, Index i, int a, const std::vector<Vec3>& pos) {
   const Index stride = a == 0 ? 1 : a == 1 ? m.dims.x : static_cast<Index>(m.dims.x) * m.dims.y;
-  const LinkLimits& L = m.link[a][static_cast<std::size_t>(i)];
+  const LinkLimits& L = m.link(a, i);
   const Vec3 d = pos[static_cast<std::size_t>(i + stride)] - pos[static_cast<std::size_t>(i)];
   float v = std::max({0.0f, L.min_d - d[a], d[a] - L.max_d});
   for (int b = 0; b < 3; ++b)
