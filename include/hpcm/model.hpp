@@ -26,6 +26,10 @@ struct Model {
   /// (kNoLink at the + border).
   std::array<std::vector<std::uint16_t>, 3> link_index;
   std::vector<LinkLimits> link_table;
+  /// The tolerance each table entry was built from: link_table[k] is
+  /// limits_from_tau(link_tau[k], w) (a backend may keep the tolerance per link instead of the
+  /// index and rebuild the limits from it).
+  std::vector<float> link_tau;
   static constexpr std::uint16_t kNoLink = 0;  ///< table entry of the missing links at the + border
 
   /// Limits of the link between i and its +a neighbour.

@@ -48,9 +48,16 @@ void rebuild_materials(Model& m, const Params& p) {
   m.class_count = counts;
   const LinkGrid grid(p.material);
   m.link_table.resize(static_cast<std::size_t>(grid.levels) + 1);
-  m.link_table[Model::kNoLink] = LinkLimits{1.0f, 1.0f, 0.0f, 1.0f};
+  m.link_tau.resize(m.link_table.size());
+  m.link_tau[Model::kNoLink] = 0.0f;
+  m.link_table[Model::kNoLink] = limits_from_tau(0.0f, 1.0f);  // {1, 1, 0, 1}: never read
 #pragma omp parallel for schedule(static)
-  for (int k = 1; k <= grid.levels; ++k) m.link_table[static_cast<std::size_t>(k)] = p.material.link_at(grid.hu(k));
+  for (int k = 1; k <= grid.levels; ++k) {
+    const float hu = grid.hu(k);
+    const float tau = p.material.tau(hu);
+    m.link_tau[static_cast<std::size_t>(k)] = tau;
+    m.link_table[static_cast<std::size_t>(k)] = limits_from_tau(tau, p.material.w(hu));
+  }
   const Index stride[3] = {1, nx, static_cast<Index>(nx) * ny};
 #pragma omp parallel for schedule(static)
   for (int z = 0; z < nz; ++z)

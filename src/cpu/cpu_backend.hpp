@@ -1,11 +1,23 @@
 #pragma once
-// The CPU backend: HP-ChainMail and the velocity layer over host arrays, from the shared rules
-// of src/solver and src/dynamics. X- is kept equal to X between frames by the layer's fused frame-end snapshot, so
-// snapshot() has nothing left to copy.
+// The CPU backend: HP-ChainMail and the velocity layer over the half-split element storage
+// (cpu/storage.hpp), from the shared rules of src/solver and src/dynamics, on the backend's
+// own threads (cpu/worker_pool.hpp).
+//
+// Work follows motion. Per brick it tracks what changed: `touched` (positions changed by the
+// ChainMail stage this frame: the velocity layer must visit), `hot` (relaxation must look at it
+// and its face neighbours), `unchecked` (positions changed since the last link check). A brick
+// that none of these mark and that carries no velocity sleeps: it costs nothing, and wakes when
+// the wave, a relaxation sweep next door or the tool reaches it. X- is kept equal to X between
+// frames by the layer's fused frame-end snapshot, so snapshot() has nothing left to copy.
 #include <chrono>
+#include <memory>
 
-#include "cpu/chainmail_cpu.hpp"
-#include "cpu/velocity_layer_cpu.hpp"
+#include "cpu/layer.hpp"
+#include "cpu/link_check.hpp"
+#include "cpu/propagate.hpp"
+#include "cpu/relax.hpp"
+#include "cpu/storage.hpp"
+#include "cpu/worker_pool.hpp"
 #include "hpcm/backend.hpp"
 #include "solver/link_restore.hpp"
 
@@ -26,24 +38,41 @@ class CpuBackend final : public Backend {
   Index active_bricks() const override { return active_; }
   void mark(int slot) override;
   double elapsed_ms(int from_slot, int to_slot) override;
-  void download(State& s) override;
-  void download_positions(std::vector<Vec3>& pos) override { pos = pos_; }
-  Vec3 position(Index i) override { return pos_[static_cast<std::size_t>(i)]; }
+  void download(State& s) override { st_.store_state(s); }
+  void download_positions(std::vector<Vec3>& pos) override { st_.store_positions(pos); }
+  Vec3 position(Index i) override { return st_.position(i); }
+
+  /// The SIMD kernels in use ("avx2" or "sse2").
+  const char* kernels() const { return kernel_name_; }
+  /// Forces the SIMD kernels ("sse2", "avx2"; empty: the best this CPU runs) from the next
+  /// load() on. For tests and benchmarks.
+  void force_kernels(const std::string& name) { forced_kernel_ = name; }
+  int threads() const { return pool_ ? pool_->threads() : 1; }
+  /// Bytes per element of the backend's arrays (the model's table and per-brick data excluded).
+  static std::size_t bytes_per_element() { return Storage::bytes_per_element(); }
 
  private:
+  RelaxContext relax_context();
+  void mark_all(std::vector<std::uint8_t>& flags) { std::fill(flags.begin(), flags.end(), 1); }
+
   const Model* m_ = nullptr;
   Params p_;
   dynamics::LayerConstants k_{};
-  std::vector<Vec3> pos_, pre_, vel_;
-  std::vector<float> time_;
-  std::vector<std::uint8_t> flags_;
+  solver::Wall wall_;
+  Storage st_;
+  solver::BrickGrid grid_;
   std::vector<Index> fixed_;
   std::vector<Vec3> targets_;
-  ChainMailCpu chainmail_;
-  VelocityLayerCpu layer_;
+  std::vector<std::uint8_t> touched_, hot_, unchecked_;
+  std::unique_ptr<WorkerPool> pool_;
+  Propagation propagation_;
+  Relaxation relaxation_;
+  VelocityLayer layer_;
+  LinkCheck check_;
   solver::LinkRestorer restorer_;
-  std::vector<std::uint8_t> unchecked_;  ///< bricks whose positions changed since the last link check
-  std::vector<Index> check_list_;
+  std::vector<Index> check_list_, seeds_;
+  std::string forced_kernel_;
+  const char* kernel_name_ = "";
   Index active_ = 0;
   std::chrono::steady_clock::time_point marks_[8];
 };

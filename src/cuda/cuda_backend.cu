@@ -93,14 +93,16 @@ __global__ void k_relax_begin(RelaxArgs a) {
   const int n = a.sweeps > 1 ? a.sweeps : 1;
   for (int j = static_cast<int>(threadIdx.x); j < n; j += static_cast<int>(blockDim.x)) relax_begin_thread(a, j);
 }
-__global__ void k_relax_list(RelaxArgs a, int s) { relax_list_thread(a, s, global_id()); }
-__global__ void __launch_bounds__(kBrickThreads) k_relax_colour(RelaxArgs a, int s, int colour) {
+__global__ void k_relax_start(RelaxArgs a) { relax_start_thread(a, global_id()); }
+__global__ void k_relax_list(RelaxArgs a, int p) { relax_list_thread(a, p, global_id()); }
+__global__ void k_relax_finish(RelaxArgs a) { relax_finish_thread(a, global_id()); }
+__global__ void __launch_bounds__(kBrickThreads) k_relax_colour(RelaxArgs a, int p) {
   __shared__ RelaxShared sh;
   DevBlock b;
-  relax_colour_block(a, s, colour, sh, b);
+  relax_colour_block(a, p, sh, b);
 }
-__global__ void k_relax_end(RelaxArgs a, int s) {
-  relax_end_thread(a, s, global_id(), static_cast<long long>(gridDim.x) * blockDim.x);
+__global__ void k_relax_end(RelaxArgs a, int p) {
+  if (global_id() == 0) relax_end_thread(a, p);
 }
 __global__ void __launch_bounds__(kBrickThreads) k_layer(LayerArgs a) {
   __shared__ LayerShared sh;
@@ -297,21 +299,22 @@ class GpuExec {
   }
   void enqueue_relax(const RelaxArgs& a) {
     const long long nb = a.L.grid.count;
-    const unsigned list_grid = grid_for(nb, 256);
+    const unsigned brick_grid = grid_for(nb, 256);
     const unsigned colour_grid = static_cast<unsigned>(std::min<long long>(nb, 8LL * sms_));
-    const unsigned end_grid = static_cast<unsigned>(std::min<long long>(grid_for(nb, 256), 4LL * sms_));
     k_relax_begin<<<1, 256, 0, stream_>>>(a);
     HPCM_LAUNCHED("k_relax_begin");
-    for (int s = 0; s < a.sweeps; ++s) {
-      k_relax_list<<<list_grid, 256, 0, stream_>>>(a, s);
+    k_relax_start<<<brick_grid, 256, 0, stream_>>>(a);
+    HPCM_LAUNCHED("k_relax_start");
+    for (int p = 0; p < 2 * a.sweeps; ++p) {
+      k_relax_list<<<brick_grid, 256, 0, stream_>>>(a, p);
       HPCM_LAUNCHED("k_relax_list");
-      for (int colour = 0; colour < 2; ++colour) {
-        k_relax_colour<<<colour_grid, kBrickThreads, 0, stream_>>>(a, s, colour);
-        HPCM_LAUNCHED("k_relax_colour");
-      }
-      k_relax_end<<<end_grid, 256, 0, stream_>>>(a, s);
+      k_relax_colour<<<colour_grid, kBrickThreads, 0, stream_>>>(a, p);
+      HPCM_LAUNCHED("k_relax_colour");
+      k_relax_end<<<1, 32, 0, stream_>>>(a, p);
       HPCM_LAUNCHED("k_relax_end");
     }
+    k_relax_finish<<<brick_grid, 256, 0, stream_>>>(a);
+    HPCM_LAUNCHED("k_relax_finish");
   }
 
   int dev_ = 0, sms_ = 1;

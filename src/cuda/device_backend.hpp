@@ -79,6 +79,7 @@ class DeviceBackend final : public Backend {
     m_ = &m;
     p_ = p;
     k_ = dynamics::make_constants(p.dynamics, m.dims);
+    if (!p.solver.sleep) k_.sleep_speed = 0.0f;
     wall_ = solver::make_wall(m.dims, p.dynamics.margin);
     L_ = Lattice{};
     L_.nx = m.dims.x;
@@ -101,7 +102,8 @@ class DeviceBackend final : public Backend {
     L_.link_table = alloc<LinkLimits>(m.link_table.size(), "link table");
     L_.touched = alloc<std::uint8_t>(NB, "brick flags");
     L_.hot = alloc<std::uint8_t>(NB, "brick flags");
-    L_.changed = alloc<std::uint8_t>(NB, "brick flags");
+    relax_start_ = alloc<std::uint8_t>(NB, "brick flags");
+    for (auto& ph : relax_phase_) ph = alloc<std::uint8_t>(NB, "brick flags");
     L_.has_vel = alloc<std::uint8_t>(NB, "brick flags");
     L_.wave = alloc<std::uint8_t>(NB, "brick flags");
     L_.unchecked = alloc<std::uint8_t>(NB, "brick flags");
@@ -143,7 +145,6 @@ class DeviceBackend final : public Backend {
     }
     x_.upload(L_.touched, touched.data(), NB);
     x_.upload(L_.hot, touched.data(), NB);
-    x_.zero(L_.changed, NB);
     x_.zero(L_.has_vel, NB);
     x_.zero(L_.wave, NB);
     std::vector<std::uint8_t> all(NB, 1);
@@ -164,6 +165,7 @@ class DeviceBackend final : public Backend {
     const bool bricks_changed = p.solver.brick_size != p_.solver.brick_size;
     p_ = p;
     k_ = dynamics::make_constants(p.dynamics, m_->dims);
+    if (!p.solver.sleep) k_.sleep_speed = 0.0f;
     wall_ = solver::make_wall(m_->dims, p.dynamics.margin);
     x_.invalidate();  // the relaxation graph holds the threshold and the wall
     {
@@ -305,8 +307,12 @@ class DeviceBackend final : public Backend {
       restorer_.init(*m_);
       restorer_ready_ = true;
     }
+    HostAccess access(host_pos_, host_flags_);
+    RestoreStats st;
+    seeds_.clear();
+    solver::find_violations(*m_, L_.grid, check_list_, access, wall_, seeds_, st);
     std::vector<std::uint8_t> moved(NB, 0);
-    const RestoreStats st = restorer_.run(*m_, L_.grid, check_list_, host_pos_, host_flags_, wall_, moved);
+    restorer_.restore(*m_, L_.grid, seeds_, access, wall_, moved, st);
     if (st.moved > 0) {
       x_.upload(L_.pos, host_pos_.data(), N * sizeof(Vec3));
       for (std::size_t b = 0; b < NB; ++b) host_touched_[b] = static_cast<std::uint8_t>(host_touched_[b] | moved[b]);
@@ -328,6 +334,8 @@ class DeviceBackend final : public Backend {
     RelaxArgs a;
     a.L = L_;
     a.list = relax_list_;
+    a.start = relax_start_;
+    for (int r = 0; r < 3; ++r) a.phase[r] = relax_phase_[r];
     a.ctl = &ctl_->relax;
     a.threshold = p_.solver.relax_threshold;
     a.omega = p_.solver.relax_omega;
@@ -529,13 +537,24 @@ class DeviceBackend final : public Backend {
   bool restorer_ready_ = false;
   std::vector<Vec3> host_pos_;
   std::vector<std::uint8_t> host_flags_, host_unchecked_, host_touched_, host_hot_;
-  std::vector<Index> check_list_;
+  std::vector<Index> check_list_, seeds_;
+  /// The restoration's view of the host copy (linear order).
+  struct HostAccess final : solver::RestoreAccess {
+    HostAccess(std::vector<Vec3>& p, const std::vector<std::uint8_t>& f) : pos(p), flags(f) {}
+    Vec3 position(Index i) const override { return pos[static_cast<std::size_t>(i)]; }
+    void set_coordinate(Index i, int axis, float value) override { pos[static_cast<std::size_t>(i)][axis] = value; }
+    bool fixed(Index i) const override { return (flags[static_cast<std::size_t>(i)] & kFixed) != 0; }
+    std::vector<Vec3>& pos;
+    const std::vector<std::uint8_t>& flags;
+  };
   std::vector<void*> blocks_;
   std::size_t held_ = 0;
   Ctl* ctl_ = nullptr;
   Ctl* host_ctl_ = nullptr;
   std::uint8_t *save_touched_ = nullptr, *save_hot_ = nullptr;
   int* relax_list_ = nullptr;
+  std::uint8_t* relax_start_ = nullptr;
+  std::uint8_t* relax_phase_[3] = {nullptr, nullptr, nullptr};
   float *part_sum_ = nullptr, *part_max_ = nullptr;
   int* part_moved_ = nullptr;
   // propagation lists

@@ -116,7 +116,6 @@ struct Lattice {
   // per brick
   std::uint8_t* touched = nullptr;  ///< positions changed this frame (velocity layer must visit)
   std::uint8_t* hot = nullptr;      ///< relaxation must look at it (and its face neighbours)
-  std::uint8_t* changed = nullptr;  ///< relaxation scratch: changed in the current sweep
   std::uint8_t* has_vel = nullptr;  ///< carries velocity (velocity layer must visit)
   std::uint8_t* wave = nullptr;     ///< holds elements with a finite time of the last wave
   std::uint8_t* unchecked = nullptr;  ///< positions changed since the last link check (restoration)
@@ -291,20 +290,24 @@ HPCM_HD void propagate_block(const PropArgs& a, PropShared& sh, B& blk) {
       a.ctl->active = 0;
     }
   });
-  // FIXED elements: t = 0, final (before any push, as on the CPU).
+  // FIXED elements: t = 0, final (before any push, as on the CPU); the grabbed ones start the
+  // wave (anchors never move).
   blk.each([&](int tid) {
     for (int j = tid; j < a.nfixed; j += T) {
       const long long f = a.fixed[j];
       L.time[f] = 0.0f;
       L.flags[f] = static_cast<std::uint8_t>(L.flags[f] | kFinalBit);
       const long long b = L.brick_of_index(f);
-      L.touched[b] = 1;
-      L.hot[b] = 1;
       L.wave[b] = 1;
+      if (L.flags[f] & kGrabbed) {
+        L.touched[b] = 1;
+        L.hot[b] = 1;
+      }
     }
   });
   blk.each([&](int tid) {
-    for (int j = tid; j < a.nfixed; j += T) push_neighbours(a, sh, a.fixed[j], 0.0f, -1);
+    for (int j = tid; j < a.nfixed; j += T)
+      if (L.flags[a.fixed[j]] & kGrabbed) push_neighbours(a, sh, a.fixed[j], 0.0f, -1);
   });
   blk.each([&](int tid) {
     if (tid == 0) {
@@ -461,18 +464,27 @@ HPCM_HD inline void count_touched_thread(const Lattice& L, long long b, PropCtl*
 // ---------------------------------------------------------------------------------------------
 
 struct RelaxCtl {
-  int count[kMaxSweeps];       ///< active (dilated hot) bricks of sweep s
-  unsigned maxcorr[kMaxSweeps];  ///< float bits of the largest correction of sweep s
-  int stop;                    ///< first sweep index that does not run (early exit)
+  int count[2 * kMaxSweeps];         ///< active bricks of phase p
+  unsigned maxcorr[2 * kMaxSweeps];  ///< float bits of the largest correction of phase p
+  int stop;                          ///< first phase that does not run (nothing can move any more)
   int sweeps;
   int active_max;
   float last_max;
 };
 
+/// The relaxation's schedule (the CPU's, src/cpu/relax.cpp, at brick granularity): phase p is
+/// colour p % 2 of sweep p / 2. A brick is relaxed in phase p when one of its elements' inputs
+/// may have changed since that element was last relaxed: the brick changed in phase p - 2 (its
+/// own positions), or it or a face neighbour changed in phase p - 1 (the other colour); in the
+/// first sweep, when it or a face neighbour is `hot` (changed by the rest of the last frame). A
+/// skipped element would compute what it computed last time, so the result is that of full
+/// red-black sweeps over the whole lattice, on every backend and for every work split.
 struct RelaxArgs {
   Lattice L;
   int* list = nullptr;  ///< capacity nbricks
   RelaxCtl* ctl = nullptr;
+  std::uint8_t* start = nullptr;                              ///< per brick: first-sweep work
+  std::uint8_t* phase[3] = {nullptr, nullptr, nullptr};       ///< per brick: changed in phase p (ring, p % 3)
   float threshold = 1e-4f;
   float omega = 1.0f;   ///< over-relaxation factor (SolverParams::relax_omega)
   solver::Wall wall;    ///< boundary box of every clamp
@@ -484,36 +496,50 @@ struct RelaxShared {
   unsigned maxc;
 };
 
-/// Sweep start, thread per index < K.
+/// Relaxation start, thread per index < 2K.
 HPCM_HD inline void relax_begin_thread(const RelaxArgs& a, int j) {
-  if (j < a.sweeps) {
+  if (j < 2 * a.sweeps) {
     a.ctl->count[j] = 0;
     a.ctl->maxcorr[j] = 0;
   }
   if (j == 0) {
-    a.ctl->stop = a.sweeps;
+    a.ctl->stop = 2 * a.sweeps;
     a.ctl->sweeps = 0;
     a.ctl->active_max = 0;
     a.ctl->last_max = 0.0f;
   }
 }
 
-/// Work list of sweep s: hot bricks and their face neighbours (BrickGrid::dilate_to_list),
-/// thread per brick. The order of the list does not matter: every result is order-free.
-HPCM_HD inline void relax_list_thread(const RelaxArgs& a, int s, long long b) {
-  if (s >= a.ctl->stop || b >= a.L.grid.count) return;
-  const bool on = a.L.grid.flagged_or_face_neighbour(a.L.hot, b);
-  if (on) a.list[at_add(&a.ctl->count[s], 1)] = static_cast<int>(b);
+/// Relaxation start, thread per brick: first-sweep work and clear phase flags.
+HPCM_HD inline void relax_start_thread(const RelaxArgs& a, long long b) {
+  if (b >= a.L.grid.count) return;
+  a.start[b] = a.L.grid.flagged_or_face_neighbour(a.L.hot, b) ? 1 : 0;
+  for (int r = 0; r < 3; ++r) a.phase[r][b] = 0;
 }
 
-/// One colour of sweep s over the listed bricks (blocks stride over the list). Elements of one
-/// colour only read the other colour, so the order inside the pass does not matter.
+/// Work list of phase p, thread per brick. The order of the list does not matter: every
+/// result is order-free.
+HPCM_HD inline void relax_list_thread(const RelaxArgs& a, int p, long long b) {
+  if (p >= a.ctl->stop || b >= a.L.grid.count) return;
+  const solver::BrickGrid& g = a.L.grid;
+  bool on;
+  if (p < 2)
+    on = a.start[b] || (p == 1 && g.flagged_or_face_neighbour(a.phase[0], b));
+  else
+    on = a.phase[(p - 2) % 3][b] || g.flagged_or_face_neighbour(a.phase[(p - 1) % 3], b);
+  if (p >= 2) a.phase[p % 3][b] = 0;  // held phase p - 3, no longer needed
+  if (on) a.list[at_add(&a.ctl->count[p], 1)] = static_cast<int>(b);
+}
+
+/// Phase p over the listed bricks (blocks stride over the list). Elements of one colour only
+/// read the other colour, so the order inside the pass does not matter.
 template <class B>
-HPCM_HD void relax_colour_block(const RelaxArgs& a, int s, int colour, RelaxShared& sh, B& blk) {
-  if (s >= a.ctl->stop) return;  // uniform; nobody writes stop during this kernel
+HPCM_HD void relax_colour_block(const RelaxArgs& a, int p, RelaxShared& sh, B& blk) {
+  if (p >= a.ctl->stop) return;  // uniform; nobody writes stop during this kernel
   const Lattice& L = a.L;
   const int T = blk.threads();
-  const int n = a.ctl->count[s];
+  const int n = a.ctl->count[p];
+  const int colour = p & 1;
   const int bs = L.grid.size, half = bs / 2, per = bs * bs * half;
   blk.each([&](int tid) {
     if (tid == 0) {
@@ -550,8 +576,9 @@ HPCM_HD void relax_colour_block(const RelaxArgs& a, int s, int colour, RelaxShar
     blk.each([&](int tid) {
       if (tid == 0) {
         if (sh.any) {
-          L.changed[b] = 1;
-          at_max_u32(&a.ctl->maxcorr[s], sh.maxc);
+          a.phase[p % 3][b] = 1;
+          L.touched[b] = 1;
+          at_max_u32(&a.ctl->maxcorr[p], sh.maxc);
         }
         sh.any = 0;
         sh.maxc = 0;
@@ -560,30 +587,28 @@ HPCM_HD void relax_colour_block(const RelaxArgs& a, int s, int colour, RelaxShar
   }
 }
 
-/// End of sweep s (grid-stride over the list): hot <- changed, touched |= changed; thread 0
-/// books the sweep and decides the early exit.
-HPCM_HD inline void relax_end_thread(const RelaxArgs& a, int s, long long g, long long nthreads) {
-  if (s >= a.ctl->stop) return;
-  const Lattice& L = a.L;
-  const int n = a.ctl->count[s];
-  for (long long j = g; j < n; j += nthreads) {
-    const long long b = a.list[j];
-    const std::uint8_t ch = L.changed[b];
-    L.hot[b] = ch;
-    if (ch) L.touched[b] = 1;
-    L.changed[b] = 0;
+/// End of phase p (one thread): books the phase; an empty phase ends the relaxation (every later
+/// phase would be empty too).
+HPCM_HD inline void relax_end_thread(const RelaxArgs& a, int p) {
+  if (p >= a.ctl->stop) return;
+  const int n = a.ctl->count[p];
+  if (n == 0) {
+    a.ctl->stop = p;
+    return;
   }
-  if (g == 0) {
-    if (n == 0) {
-      a.ctl->stop = s;  // nothing to relax: the sweep does not count
-    } else {
-      const float m = bits_float(a.ctl->maxcorr[s]);
-      a.ctl->sweeps = s + 1;
-      a.ctl->last_max = m;
-      if (n > a.ctl->active_max) a.ctl->active_max = n;
-      if (m < a.threshold || m == 0.0f) a.ctl->stop = s + 1;  // early exit
-    }
-  }
+  const int s = p / 2;
+  const float m = bits_float(a.ctl->maxcorr[p]);
+  a.ctl->last_max = s + 1 > a.ctl->sweeps ? m : (m > a.ctl->last_max ? m : a.ctl->last_max);
+  a.ctl->sweeps = s + 1;
+  if (n > a.ctl->active_max) a.ctl->active_max = n;
+}
+
+/// After the last phase, thread per brick: hot <- changed by the last sweep (work for the
+/// next frame; nothing when the relaxation ended early).
+HPCM_HD inline void relax_finish_thread(const RelaxArgs& a, long long b) {
+  if (b >= a.L.grid.count) return;
+  const int P = 2 * a.sweeps;
+  a.L.hot[b] = a.ctl->stop >= P && P >= 2 && (a.phase[(P - 1) % 3][b] || a.phase[(P - 2) % 3][b]) ? 1 : 0;
 }
 
 // ---------------------------------------------------------------------------------------------

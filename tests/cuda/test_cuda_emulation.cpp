@@ -40,14 +40,14 @@ TEST(CudaEmulation, MemoryPerElementAtThePapersScale) {
   EXPECT_GE(per, 52.0);
 }
 
-// The device reads the Model's own link table: a hand-edited link (not of the material's form)
-// is used as the CPU backend uses it.
+// The device reads the Model's own link table: a hand-edited link (not the material's value at
+// its pair's mean HU) is used as the CPU backend uses it.
 TEST(CudaEmulation, DeviceUsesTheModelsLinkTable) {
   const Params p;
   Model m = random_model({10, 9, 8}, 3, p);
-  LinkLimits edited = m.link(1, 5);
-  edited.max_d += 0.01f;
-  m.link_table.push_back(edited);
+  const float tau = m.link_tau[m.link_index[1][5]] * 1.5f;
+  m.link_tau.push_back(tau);
+  m.link_table.push_back(limits_from_tau(tau, m.link(1, 5).w));
   m.link_index[1][5] = static_cast<std::uint16_t>(m.link_table.size() - 1);
   const auto dev = [] { return std::make_unique<gpu::DeviceBackend<gpu::EmuExec>>(); };
   check_waves([&] { return dev(); }, m, with_mode(p, DampingMode::Viscoelastic), 11, 4, "edited link");
