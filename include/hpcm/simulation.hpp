@@ -5,7 +5,7 @@
 #include <memory>
 #include <vector>
 
-#include "hpcm/backend.hpp"
+#include "hpcm/backend_factory.hpp"
 
 namespace hpcm {
 

@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <limits>
 
-#include "solver/link_box.hpp"
+#include "core/link_box.hpp"
 
 namespace hpcm {
 
@@ -30,7 +30,7 @@ float max_link_violation(const Model& m, const std::vector<Vec3>& pos) {
         const int c[3] = {x, y, z};
         const int d[3] = {nx, ny, nz};
         for (int a = 0; a < 3; ++a)
-          if (c[a] + 1 < d[a]) worst = std::max(worst, solver::link_violation(pos[i], pos[i + stride[a]], m.link[a][i], a));
+          if (c[a] + 1 < d[a]) worst = std::max(worst, link_violation(pos[i], pos[i + stride[a]], m.link[a][i], a));
       }
   return worst;
 }

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "cuda/cuda_backend.hpp"
 #include "cuda/device_backend.hpp"
 
 namespace hpcm {
@@ -83,7 +84,7 @@ __global__ void __launch_bounds__(kPropThreads) k_propagate(PropArgs a) {
 }
 __global__ void k_count_touched(Lattice L, PropCtl* ctl) {
   const long long b = global_id();
-  if (b < L.nbricks) count_touched_thread(L, b, ctl);
+  if (b < L.grid.count) count_touched_thread(L, b, ctl);
 }
 __global__ void k_full_reset(Lattice L) {
   for (long long i = global_id(); i < L.n; i += static_cast<long long>(gridDim.x) * blockDim.x) full_reset_element(L, i);
@@ -193,7 +194,7 @@ class GpuExec {
     HPCM_LAUNCHED("k_apply_targets");
   }
   void reset_wave(const Lattice& L) {
-    k_reset_wave<<<static_cast<unsigned>(L.nbricks), kBrickThreads, 0, stream_>>>(L);
+    k_reset_wave<<<static_cast<unsigned>(L.grid.count), kBrickThreads, 0, stream_>>>(L);
     HPCM_LAUNCHED("k_reset_wave");
   }
   void propagate(const PropArgs& a) {
@@ -201,7 +202,7 @@ class GpuExec {
     HPCM_LAUNCHED("k_propagate");
   }
   void count_touched(const Lattice& L, PropCtl* ctl) {
-    k_count_touched<<<grid_for(L.nbricks, 256), 256, 0, stream_>>>(L, ctl);
+    k_count_touched<<<grid_for(L.grid.count, 256), 256, 0, stream_>>>(L, ctl);
     HPCM_LAUNCHED("k_count_touched");
   }
   void full_reset(const Lattice& L) {
@@ -231,7 +232,7 @@ class GpuExec {
     HPCM_CUDA(cudaGraphLaunch(it->second, stream_));
   }
   void layer(const LayerArgs& a) {
-    k_layer<<<static_cast<unsigned>(a.L.nbricks), kBrickThreads, 0, stream_>>>(a);
+    k_layer<<<static_cast<unsigned>(a.L.grid.count), kBrickThreads, 0, stream_>>>(a);
     HPCM_LAUNCHED("k_layer");
   }
   void speed_sum(const LayerArgs& a) {
@@ -295,7 +296,7 @@ class GpuExec {
     return v.size() % 2 ? v[h] : 0.5 * (v[h - 1] + v[h]);
   }
   void enqueue_relax(const RelaxArgs& a) {
-    const long long nb = a.L.nbricks;
+    const long long nb = a.L.grid.count;
     const unsigned list_grid = grid_for(nb, 256);
     const unsigned colour_grid = static_cast<unsigned>(std::min<long long>(nb, 8LL * sms_));
     const unsigned end_grid = static_cast<unsigned>(std::min<long long>(grid_for(nb, 256), 4LL * sms_));

@@ -18,6 +18,7 @@
 
 #include "cuda/kernels.hpp"
 #include "hpcm/backend.hpp"
+#include "solver/schedule.hpp"
 
 namespace hpcm::gpu {
 
@@ -102,11 +103,7 @@ class DeviceBackend final : public Backend {
     L_.ny = m.dims.y;
     L_.nz = m.dims.z;
     L_.n = n;
-    L_.bs = p.solver.brick_size;
-    L_.nbx = (L_.nx + L_.bs - 1) / L_.bs;
-    L_.nby = (L_.ny + L_.bs - 1) / L_.bs;
-    L_.nbz = (L_.nz + L_.bs - 1) / L_.bs;
-    L_.nbricks = static_cast<long long>(L_.nbx) * L_.nby * L_.nbz;
+    L_.grid.init(m.dims, p.solver.brick_size);
 
     // Material w(HU) for on-the-fly links.
     const auto& pts = p.material.points;
@@ -120,7 +117,7 @@ class DeviceBackend final : public Backend {
       compact_ = compact_links_match(m, L_.mat);
     }
 
-    const std::size_t N = static_cast<std::size_t>(n), NB = static_cast<std::size_t>(L_.nbricks);
+    const std::size_t N = static_cast<std::size_t>(n), NB = static_cast<std::size_t>(L_.grid.count);
     const std::size_t N4 = (N + 3) / 4 * 4;
     L_.pos = alloc<Vec3>(N, "positions");
     L_.pre = alloc<Vec3>(N, "pre-ChainMail snapshot");
@@ -189,18 +186,7 @@ class DeviceBackend final : public Backend {
     x_.zero(L_.wave, NB);
     x_.zero(ctl_, sizeof(Ctl));
 
-    // Bucket width: the smallest time penalty of any link (ChainMailCpu::init).
-    float dmin = std::numeric_limits<float>::infinity();
-    const int dims[3] = {m.dims.x, m.dims.y, m.dims.z};
-    for (int a = 0; a < 3; ++a) {
-      if (dims[a] < 2) continue;
-      for (Index i = 0; i < n; ++i) {
-        const Int3 c = m.coords(i);
-        const int ca[3] = {c.x, c.y, c.z};
-        if (ca[a] + 1 < dims[a]) dmin = std::min(dmin, m.link[a][static_cast<std::size_t>(i)].w);
-      }
-    }
-    delta_ = std::isfinite(dmin) ? dmin : 1.0f;
+    delta_ = solver::bucket_width(m);
     fixed_.clear();
     n_fixed_dev_ = 0;
     active_ = 0;
@@ -270,8 +256,8 @@ class DeviceBackend final : public Backend {
     FixedArgs fa = fixed_args();
     x_.apply_targets(fa);
     x_.reset_wave(L_);
-    x_.copy(save_touched_, L_.touched, static_cast<std::size_t>(L_.nbricks));
-    x_.copy(save_hot_, L_.hot, static_cast<std::size_t>(L_.nbricks));
+    x_.copy(save_touched_, L_.touched, static_cast<std::size_t>(L_.grid.count));
+    x_.copy(save_hot_, L_.hot, static_cast<std::size_t>(L_.grid.count));
     for (;;) {
       PropArgs a;
       a.L = L_;
@@ -311,9 +297,9 @@ class DeviceBackend final : public Backend {
       list_cap_ = std::max(list_cap_, list_new);
       alloc_prop_lists();
       x_.full_reset(L_);
-      x_.zero(L_.wave, static_cast<std::size_t>(L_.nbricks));
-      x_.copy(L_.touched, save_touched_, static_cast<std::size_t>(L_.nbricks));
-      x_.copy(L_.hot, save_hot_, static_cast<std::size_t>(L_.nbricks));
+      x_.zero(L_.wave, static_cast<std::size_t>(L_.grid.count));
+      x_.copy(L_.touched, save_touched_, static_cast<std::size_t>(L_.grid.count));
+      x_.copy(L_.hot, save_hot_, static_cast<std::size_t>(L_.grid.count));
     }
     PropagateStats st;
     st.sweeps = host_ctl_->prop.sweeps;

@@ -16,6 +16,8 @@
 
 #include "dynamics/velocity_update.hpp"
 #include "hpcm/state.hpp"
+#include "solver/bricks.hpp"
+#include "solver/neighbours.hpp"
 #include "solver/rules.hpp"
 
 namespace hpcm::gpu {
@@ -122,8 +124,7 @@ HPCM_HD inline float material_w(const MaterialW& m, float hu) {
 struct Lattice {
   int nx = 0, ny = 0, nz = 0;
   long long n = 0;
-  int bs = 8, nbx = 0, nby = 0, nbz = 0;
-  long long nbricks = 0;
+  solver::BrickGrid grid;  ///< brick geometry, shared with the CPU backend
   Vec3* pos = nullptr;   ///< X (X+ after ChainMail)
   Vec3* pre = nullptr;   ///< X- (pre-ChainMail snapshot; equal to X between frames)
   Vec3* vel = nullptr;   ///< V
@@ -149,30 +150,13 @@ struct Lattice {
     y = static_cast<int>(r % ny);
     z = static_cast<int>(r / ny);
   }
-  HPCM_HD long long brick_of(int x, int y, int z) const {
-    return x / bs + static_cast<long long>(nbx) * (y / bs + static_cast<long long>(nby) * (z / bs));
-  }
-  HPCM_HD long long brick_of_index(long long i) const {
-    int x, y, z;
-    coords(i, x, y, z);
-    return brick_of(x, y, z);
-  }
-  HPCM_HD void brick_coords(long long b, int& bx, int& by, int& bz) const {
-    bx = static_cast<int>(b % nbx);
-    const long long r = b / nbx;
-    by = static_cast<int>(r % nby);
-    bz = static_cast<int>(r / nby);
-  }
-  /// Element range [lo, hi) of brick b (as BrickGrid::range).
+  HPCM_HD long long brick_of_index(long long i) const { return grid.brick_of_index(i); }
+  /// Element range [lo, hi) of brick b.
   HPCM_HD void brick_range(long long b, int lo[3], int hi[3]) const {
-    int bx, by, bz;
-    brick_coords(b, bx, by, bz);
-    lo[0] = bx * bs;
-    lo[1] = by * bs;
-    lo[2] = bz * bs;
-    hi[0] = lo[0] + bs < nx ? lo[0] + bs : nx;
-    hi[1] = lo[1] + bs < ny ? lo[1] + bs : ny;
-    hi[2] = lo[2] + bs < nz ? lo[2] + bs : nz;
+    Int3 l, h;
+    grid.range(b, l, h);
+    lo[0] = l.x, lo[1] = l.y, lo[2] = l.z;
+    hi[0] = h.x, hi[1] = h.y, hi[2] = h.z;
   }
   /// Limits of the link along axis a between element lo and its + neighbour hi.
   HPCM_HD LinkLimits link_of(int a, long long lo, long long hi) const {
@@ -182,26 +166,19 @@ struct Lattice {
   }
 };
 
-/// ChainMailCpu::gather on the device layout: same neighbours, same order (-x,+x,-y,+y,-z,+z).
+/// ChainMailCpu::gather on the device layout: the shared face-neighbour walk.
 HPCM_HD inline int gather(const Lattice& L, int x, int y, int z, long long i, solver::Neighbour* nb) {
-  const long long sy = L.nx, sz = static_cast<long long>(L.nx) * L.ny;
   int c = 0;
-  auto add = [&](long long n, int axis, int side, const LinkLimits& lim) {
+  solver::for_each_face_neighbour(L.nx, L.ny, L.nz, x, y, z, i, [&](long long n, int axis, int side, long long lo, long long hi) {
     nb[c].idx = n;
     nb[c].axis = axis;
     nb[c].side = side;
-    nb[c].L = lim;
+    nb[c].L = L.link_of(axis, lo, hi);
     nb[c].t = L.time[n];
     nb[c].tau = L.tau[n];
     nb[c].p = L.pos[n];
     ++c;
-  };
-  if (x > 0) add(i - 1, 0, +1, L.link_of(0, i - 1, i));
-  if (x + 1 < L.nx) add(i + 1, 0, -1, L.link_of(0, i, i + 1));
-  if (y > 0) add(i - sy, 1, +1, L.link_of(1, i - sy, i));
-  if (y + 1 < L.ny) add(i + sy, 1, -1, L.link_of(1, i, i + sy));
-  if (z > 0) add(i - sz, 2, +1, L.link_of(2, i - sz, i));
-  if (z + 1 < L.nz) add(i + sz, 2, -1, L.link_of(2, i, i + sz));
+  });
   return c;
 }
 
@@ -260,7 +237,7 @@ HPCM_HD void apply_targets_block(const FixedArgs& a, B& blk) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Propagation: the bucketed schedule of src/solver/propagate.cpp on one thread block
+// Propagation: the bucketed schedule of src/cpu/chainmail_propagate.cpp on one thread block
 // ---------------------------------------------------------------------------------------------
 
 struct PropCtl {
@@ -315,20 +292,13 @@ HPCM_HD inline void push_neighbours(const PropArgs& a, PropShared& sh, long long
   const Lattice& L = a.L;
   int x, y, z;
   L.coords(i, x, y, z);
-  const long long sy = L.nx, sz = static_cast<long long>(L.nx) * L.ny;
-  auto push = [&](long long n, float w) {
+  solver::for_each_face_neighbour(L.nx, L.ny, L.nz, x, y, z, i, [&](long long n, int axis, int, long long lo, long long hi) {
     if (L.flags[n] & (kFinalBit | kFixed)) return;
-    const float c = t + w;
+    const float c = t + L.link_of(axis, lo, hi).w;
     const unsigned long long b = bucket_of(c, a.delta);
     if (processed >= 0 && b <= static_cast<unsigned long long>(processed)) return;
     pend_put(a, sh, static_cast<int>(n), b);
-  };
-  if (x > 0) push(i - 1, L.link_of(0, i - 1, i).w);
-  if (x + 1 < L.nx) push(i + 1, L.link_of(0, i, i + 1).w);
-  if (y > 0) push(i - sy, L.link_of(1, i - sy, i).w);
-  if (y + 1 < L.ny) push(i + sy, L.link_of(1, i, i + sy).w);
-  if (z > 0) push(i - sz, L.link_of(2, i - sz, i).w);
-  if (z + 1 < L.nz) push(i + sz, L.link_of(2, i, i + sz).w);
+  });
 }
 
 /// The whole wave on one block: buckets in ascending order (smallest pending bucket by a block
@@ -484,7 +454,7 @@ HPCM_HD void reset_wave_block(const Lattice& L, long long b, B& blk) {
   const int T = blk.threads();
   int lo[3], hi[3];
   L.brick_range(b, lo, hi);
-  const int bs = L.bs, per = bs * bs * bs;
+  const int bs = L.grid.size, per = bs * bs * bs;
   blk.each([&](int tid) {
     for (int q = tid; q < per; q += T) {
       const int x = lo[0] + q % bs, y = lo[1] + (q / bs) % bs, z = lo[2] + q / (bs * bs);
@@ -512,7 +482,7 @@ HPCM_HD inline void count_touched_thread(const Lattice& L, long long b, PropCtl*
 }
 
 // ---------------------------------------------------------------------------------------------
-// Relaxation: red-black Gauss-Seidel on a compacted list of active bricks (src/solver/relax.cpp)
+// Relaxation: red-black Gauss-Seidel on a compacted list of active bricks (src/cpu/chainmail_relax.cpp)
 // ---------------------------------------------------------------------------------------------
 
 struct RelaxCtl {
@@ -555,18 +525,8 @@ HPCM_HD inline void relax_begin_thread(const RelaxArgs& a, int j) {
 /// Work list of sweep s: hot bricks and their face neighbours (BrickGrid::dilate_to_list),
 /// thread per brick. The order of the list does not matter: every result is order-free.
 HPCM_HD inline void relax_list_thread(const RelaxArgs& a, int s, long long b) {
-  if (s >= a.ctl->stop || b >= a.L.nbricks) return;
-  const Lattice& L = a.L;
-  int bx, by, bz;
-  L.brick_coords(b, bx, by, bz);
-  const long long sy = L.nbx, sz = static_cast<long long>(L.nbx) * L.nby;
-  bool on = L.hot[b];
-  if (!on && bx > 0) on = L.hot[b - 1];
-  if (!on && bx + 1 < L.nbx) on = L.hot[b + 1];
-  if (!on && by > 0) on = L.hot[b - sy];
-  if (!on && by + 1 < L.nby) on = L.hot[b + sy];
-  if (!on && bz > 0) on = L.hot[b - sz];
-  if (!on && bz + 1 < L.nbz) on = L.hot[b + sz];
+  if (s >= a.ctl->stop || b >= a.L.grid.count) return;
+  const bool on = a.L.grid.flagged_or_face_neighbour(a.L.hot, b);
   if (on) a.list[at_add(&a.ctl->count[s], 1)] = static_cast<int>(b);
 }
 
@@ -578,7 +538,7 @@ HPCM_HD void relax_colour_block(const RelaxArgs& a, int s, int colour, RelaxShar
   const Lattice& L = a.L;
   const int T = blk.threads();
   const int n = a.ctl->count[s];
-  const int bs = L.bs, half = bs / 2, per = bs * bs * half;
+  const int bs = L.grid.size, half = bs / 2, per = bs * bs * half;
   blk.each([&](int tid) {
     if (tid == 0) {
       sh.any = 0;
@@ -718,7 +678,7 @@ HPCM_HD void layer_block(const LayerArgs& a, long long b, LayerShared& sh, B& bl
   }
   int lo[3], hi[3];
   L.brick_range(b, lo, hi);
-  const int bs = L.bs, per = bs * bs * bs;
+  const int bs = L.grid.size, per = bs * bs * bs;
   blk.each([&](int tid) {
     if (tid == 0) {
       sh.anyv = 0;
@@ -792,7 +752,7 @@ HPCM_HD void speed_sum_block(const LayerArgs& a, SpeedShared& sh, B& blk) {
     double s[kTissueCount] = {0, 0, 0, 0};
     float m[kTissueCount] = {0, 0, 0, 0};
     long long mv = 0;
-    for (long long b = tid; b < a.L.nbricks; b += T) {
+    for (long long b = tid; b < a.L.grid.count; b += T) {
       for (int t = 0; t < kTissueCount; ++t) {
         s[t] += a.part_sum[b * kTissueCount + t];
         const float x = a.part_max[b * kTissueCount + t];

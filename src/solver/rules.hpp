@@ -14,7 +14,7 @@
 #include <cmath>
 
 #include "hpcm/material.hpp"
-#include "solver/link_box.hpp"
+#include "core/link_box.hpp"
 
 namespace hpcm::solver {
 
@@ -75,7 +75,7 @@ HPCM_HD inline unsigned long long bucket_of(float t, double delta) {
 }
 
 /// The propagation rule restricted to the candidates of one time bucket (the schedule of
-/// src/solver/propagate.cpp and the CUDA kernels): candidate times below the bucket were
+/// src/cpu/chainmail_propagate.cpp and the CUDA kernels): candidate times below the bucket were
 /// decided in earlier buckets (their upstream sets can no longer change), candidates above it
 /// belong to later buckets.
 HPCM_HD inline bool propagate_in_bucket(long long e, Vec3 p0, const Neighbour* nb, int count,

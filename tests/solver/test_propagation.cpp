@@ -5,7 +5,7 @@
 #include <random>
 #include <sstream>
 
-#include "hpcm/backend.hpp"
+#include "hpcm/backend_factory.hpp"
 #include "hpcm/state.hpp"
 #include "solver/reference/dijkstra.hpp"
 #include "solver_test_util.hpp"

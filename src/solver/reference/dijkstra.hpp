@@ -1,7 +1,7 @@
 #pragma once
 // Sequential Dijkstra-order reference of the timestamped HP-ChainMail propagation (SPEC §4).
 // Single-threaded, deliberately plain: used by the test suite to check the parallel solver
-// (src/solver/propagate.cpp) and by the benchmark. Never used by the pipeline.
+// (src/cpu/chainmail_propagate.cpp) and by the benchmark. Never used by the pipeline.
 //
 // The rule (docs/solver.md, "Propagation rule"), per non-FIXED element e with start
 // position p0:

@@ -1,35 +1,15 @@
-#include "dynamics/velocity_layer.hpp"
+#include "cpu/velocity_layer_cpu.hpp"
 
 #include <algorithm>
 
 #include "hpcm/state.hpp"
 
-namespace hpcm::dynamics {
+namespace hpcm::cpu {
 
-LayerConstants make_constants(const DynamicsParams& p, Int3 dims) {
-  LayerConstants k{};
-  k.mode = p.mode == DampingMode::None ? 0 : (p.mode == DampingMode::Simple ? 1 : 2);
-  k.alpha = p.alpha;
-  k.b0 = p.b0;
-  k.dead_zone = p.dead_zone;
-  k.v_max = p.v_max;
-  k.beta = p.beta;
-  const PerTissue s = p.response_scale();
-  for (int t = 0; t < kTissueCount; ++t) {
-    k.s[t] = s[t];
-    k.b1[t] = p.b1[t];
-    k.rho[t] = p.rho[t];
-    k.inv_mass[t] = p.inverse_mass[t];
-  }
-  const int d[3] = {dims.x, dims.y, dims.z};
-  for (int a = 0; a < 3; ++a) {
-    k.lo[a] = -p.margin;
-    k.hi[a] = static_cast<float>(d[a] - 1) + p.margin;
-  }
-  return k;
-}
+using dynamics::LayerConstants;
+using dynamics::velocity_update;
 
-void VelocityLayerCpu::apply(const Model& m, const LayerConstants& k, const solver::BrickGrid& grid, LayerBuffers buf,
+void VelocityLayerCpu::apply(const Model& m, const LayerConstants& k, const BrickGrid& grid, LayerBuffers buf,
                              std::vector<std::uint8_t>& touched, std::vector<std::uint8_t>& hot, SpeedStats* speeds) {
   list_.clear();
   for (Index b = 0; b < grid.count; ++b)
@@ -89,4 +69,4 @@ void VelocityLayerCpu::apply(const Model& m, const LayerConstants& k, const solv
   }
 }
 
-}  // namespace hpcm::dynamics
+}  // namespace hpcm::cpu

@@ -1,6 +1,6 @@
-#include "pipeline/cpu_backend.hpp"
+#include "cpu/cpu_backend.hpp"
 
-namespace hpcm {
+namespace hpcm::cpu {
 
 void CpuBackend::load(const Model& m, const Params& p, const State& s) {
   m_ = &m;
@@ -75,7 +75,7 @@ RelaxStats CpuBackend::relax(int sweeps) {
 }
 
 void CpuBackend::velocity_layer(SpeedStats* speeds) {
-  dynamics::LayerBuffers buf{&pos_, &pre_, &vel_, &flags_};
+  LayerBuffers buf{&pos_, &pre_, &vel_, &flags_};
   layer_.apply(*m_, k_, chainmail_.grid(), buf, chainmail_.touched(), chainmail_.hot(), speeds);
   active_ = std::max(active_, layer_.last_bricks());
 }
@@ -96,4 +96,4 @@ void CpuBackend::download(State& s) {
   s.flags = flags_;
 }
 
-}  // namespace hpcm
+}  // namespace hpcm::cpu

@@ -2,9 +2,12 @@
 #include <cmath>
 #include <limits>
 
-#include "solver/chainmail.hpp"
+#include "cpu/chainmail_cpu.hpp"
+#include "solver/schedule.hpp"
 
-namespace hpcm::solver {
+namespace hpcm::cpu {
+
+using namespace solver;
 
 void ChainMailCpu::init(const Model& m, int brick_size) {
   grid_.init(m.dims, brick_size);
@@ -16,18 +19,7 @@ void ChainMailCpu::init(const Model& m, int brick_size) {
   for (Index i = 0; i < m.size(); ++i) weight_[i] = 1.0f / (m.tau[i] + 1e-4f);  // as in relax_element
   reached_.clear();
   buckets_.clear();
-  // Bucket width: the smallest time penalty of any link (w > 0 is validated).
-  float d = std::numeric_limits<float>::infinity();
-  const int dims[3] = {m.dims.x, m.dims.y, m.dims.z};
-  for (int a = 0; a < 3; ++a) {
-    if (dims[a] < 2) continue;
-    for (Index i = 0; i < m.size(); ++i) {
-      const Int3 c = m.coords(i);
-      const int ca[3] = {c.x, c.y, c.z};
-      if (ca[a] + 1 < dims[a]) d = std::min(d, m.link[a][i].w);
-    }
-  }
-  delta_ = std::isfinite(d) ? d : 1.0f;
+  delta_ = bucket_width(m);
 }
 
 int ChainMailCpu::gather(const Model& m, const Vec3* pos, const float* time, int x, int y, int z, Index i, Neighbour* nb) {
@@ -133,4 +125,4 @@ PropagateStats ChainMailCpu::propagate(const Model& m, std::vector<Vec3>& pos, c
   return st;
 }
 
-}  // namespace hpcm::solver
+}  // namespace hpcm::cpu

@@ -5,9 +5,11 @@
 #include <emmintrin.h>
 #endif
 
-#include "solver/chainmail.hpp"
+#include "cpu/chainmail_cpu.hpp"
 
-namespace hpcm::solver {
+namespace hpcm::cpu {
+
+using namespace solver;
 
 namespace {
 
@@ -213,4 +215,4 @@ RelaxStats ChainMailCpu::relax(const Model& m, std::vector<Vec3>& pos, const std
   return st;
 }
 
-}  // namespace hpcm::solver
+}  // namespace hpcm::cpu

@@ -1,7 +1,7 @@
 #pragma once
-// HP-ChainMail on the CPU (SPEC §4): timestamped propagation processed in time buckets
-// (label-setting, exact, OpenMP inside large buckets) and brick-sparse red-black Gauss-Seidel
-// relaxation. Knows nothing about velocities: it moves positions and reports which bricks it
+// The CPU backend's HP-ChainMail (SPEC §4), from the shared rules of src/solver: timestamped
+// propagation processed in time buckets (label-setting, exact, OpenMP inside large buckets)
+// and brick-sparse red-black Gauss-Seidel relaxation. Knows nothing about velocities: it moves positions and reports which bricks it
 // touched.
 //
 // Why buckets and not plain Jacobi sweeps: an element's time depends on whether it moved,
@@ -13,26 +13,16 @@
 // Dijkstra-order result (docs/solver.md).
 #include <vector>
 
-#include "hpcm/backend.hpp"
-#include "hpcm/model.hpp"
+#include "hpcm/state.hpp"
+#include "hpcm/stats.hpp"
 #include "solver/bricks.hpp"
+#include "solver/neighbours.hpp"
 #include "solver/rules.hpp"
 
-namespace hpcm::solver {
+namespace hpcm::cpu {
 
-/// Calls f(n, axis, side, link) for each face neighbour n of element i = (x, y, z), always in
-/// the order -x, +x, -y, +y, -z, +z (so sums over neighbours are reproducible). side is +1 when
-/// i lies on the + side of n; link is the limits of the link between them.
-template <class F>
-inline void for_each_face_neighbour(const Model& m, int x, int y, int z, Index i, F&& f) {
-  const Index sy = m.dims.x, sz = static_cast<Index>(m.dims.x) * m.dims.y;
-  if (x > 0) f(i - 1, 0, +1, m.link[0][i - 1]);
-  if (x + 1 < m.dims.x) f(i + 1, 0, -1, m.link[0][i]);
-  if (y > 0) f(i - sy, 1, +1, m.link[1][i - sy]);
-  if (y + 1 < m.dims.y) f(i + sy, 1, -1, m.link[1][i]);
-  if (z > 0) f(i - sz, 2, +1, m.link[2][i - sz]);
-  if (z + 1 < m.dims.z) f(i + sz, 2, -1, m.link[2][i]);
-}
+using solver::BrickGrid;
+using solver::Neighbour;
 
 class ChainMailCpu {
  public:
@@ -75,4 +65,4 @@ class ChainMailCpu {
   Index last_active_ = 0;
 };
 
-}  // namespace hpcm::solver
+}  // namespace hpcm::cpu

@@ -1,14 +1,14 @@
 #pragma once
-// The CPU backend: HP-ChainMail (src/solver) + the velocity layer (src/dynamics) over host
-// arrays. X- is kept equal to X between frames by the layer's fused frame-end snapshot, so
+// The CPU backend: HP-ChainMail and the velocity layer over host arrays, from the shared rules
+// of src/solver and src/dynamics. X- is kept equal to X between frames by the layer's fused frame-end snapshot, so
 // snapshot() has nothing left to copy.
 #include <chrono>
 
-#include "dynamics/velocity_layer.hpp"
+#include "cpu/chainmail_cpu.hpp"
+#include "cpu/velocity_layer_cpu.hpp"
 #include "hpcm/backend.hpp"
-#include "solver/chainmail.hpp"
 
-namespace hpcm {
+namespace hpcm::cpu {
 
 class CpuBackend final : public Backend {
  public:
@@ -37,10 +37,10 @@ class CpuBackend final : public Backend {
   std::vector<std::uint8_t> flags_;
   std::vector<Index> fixed_;
   std::vector<Vec3> targets_;
-  solver::ChainMailCpu chainmail_;
-  dynamics::VelocityLayerCpu layer_;
+  ChainMailCpu chainmail_;
+  VelocityLayerCpu layer_;
   Index active_ = 0;
   std::chrono::steady_clock::time_point marks_[8];
 };
 
-}  // namespace hpcm
+}  // namespace hpcm::cpu
