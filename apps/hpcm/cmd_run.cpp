@@ -13,7 +13,8 @@ std::string frames_csv_header() {
   std::string h = "frame,stage,grab_offset,moved_elements,active_bricks,max_link_violation,chainmail_ms,sim_total_ms";
   for (int t = 0; t < kTissueCount; ++t) h += std::string(",mean_speed_") + tissue_name(t);
   for (int t = 0; t < kTissueCount; ++t) h += std::string(",max_speed_") + tissue_name(t);
-  h += ",inertia_ms,snapshot_ms,propagate_sweeps,relax_sweeps\n";
+  h += ",inertia_ms,snapshot_ms,propagate_sweeps,relax_sweeps";
+  h += ",requested_offset,tool_limited,restored_links,restore_violation,min_cell_jacobian,folded_cells\n";
   return h;
 }
 
@@ -32,7 +33,11 @@ std::string frames_csv_row(const FrameReport& r) {
     std::snprintf(buf, sizeof buf, ",%.9g", r.max_speed[t]);
     s += buf;
   }
-  std::snprintf(buf, sizeof buf, ",%.6f,%.6f,%d,%d\n", r.inertia_ms, r.snapshot_ms, r.propagate_sweeps, r.relax_sweeps);
+  std::snprintf(buf, sizeof buf, ",%.6f,%.6f,%d,%d", r.inertia_ms, r.snapshot_ms, r.propagate_sweeps, r.relax_sweeps);
+  s += buf;
+  std::snprintf(buf, sizeof buf, ",%.6g,%d,%lld,%.6g,%.6g,%lld\n", r.requested_offset, r.tool_limited ? 1 : 0,
+                static_cast<long long>(r.restored_links), r.restore_violation, r.min_cell_jacobian,
+                static_cast<long long>(r.folded_cells));
   return s + buf;
 }
 
@@ -76,6 +81,7 @@ void register_run(CLI::App& app) {
     csv << frames_csv_header();
     StepOptions so;
     so.link_violation = !o->no_link_check;
+    so.cell_jacobian = !o->no_link_check;
     const bool progress = want_progress();
     float worst = 0;
     for (int f = 0; f < frames; ++f) {

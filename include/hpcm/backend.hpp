@@ -49,6 +49,9 @@ class Backend {
   virtual PropagateStats propagate() = 0;
   /// Up to `sweeps` relaxation sweeps with early exit (SPEC §4).
   virtual RelaxStats relax(int sweeps) = 0;
+  /// The last step of every ChainMail stage: every link back in its box (and every element in
+  /// the boundary box) where something left it, FIXED elements untouched (docs/solver.md).
+  virtual RestoreStats restore_links() = 0;
   /// The independent-velocity layer (SPEC §5) + boundary clamp + frame-end snapshot.
   /// Fills `speeds` when non-null (only then are speeds reduced).
   virtual void velocity_layer(SpeedStats* speeds) = 0;

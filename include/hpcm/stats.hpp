@@ -16,6 +16,13 @@ struct RelaxStats {
   float max_correction = 0;    ///< largest correction of the last sweep
 };
 
+/// The link restoration at the end of every ChainMail stage (docs/solver.md).
+struct RestoreStats {
+  Index violated_links = 0;     ///< links found outside their box (beyond the tolerance) before restoring
+  float max_violation = 0;      ///< the largest of those violations, lattice units
+  Index moved = 0;              ///< elements the restoration moved
+};
+
 /// Per-tissue speed reduction of one frame: speed = |X_end(t) - X_end(t-1)|.
 struct SpeedStats {
   PerTissue sum{};        ///< sum of speeds per class

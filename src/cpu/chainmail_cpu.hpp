@@ -27,6 +27,9 @@ using solver::Neighbour;
 class ChainMailCpu {
  public:
   void init(const Model& m, int brick_size);
+  /// The boundary box every clamp respects (solver::Wall).
+  void set_wall(const solver::Wall& w) { wall_ = w; }
+  const solver::Wall& wall() const { return wall_; }
 
   /// Wave from the FIXED elements (`fixed`, positions already at their targets in `pos`).
   /// Non-FIXED elements start from `pre` (X-). Writes pos and time.
@@ -52,6 +55,7 @@ class ChainMailCpu {
 
  private:
   BrickGrid grid_;
+  solver::Wall wall_;
   std::vector<std::uint8_t> touched_, hot_, changed_;
   std::vector<float> weight_;                ///< relaxation weight 1/(tau + 1e-4) per element
   std::vector<Index> list_;

@@ -88,7 +88,7 @@ PropagateStats ChainMailCpu::propagate(const Model& m, std::vector<Vec3>& pos, c
         const Int3 c = m.coords(e);
         Neighbour nb[6];
         const int cnt = gather(m, pos.data(), time.data(), c.x, c.y, c.z, e, nb);
-        propagate_in_bucket(e, pre[e], nb, cnt, k, delta, scratch_t_[j], scratch_p_[j]);
+        propagate_in_bucket(e, pre[e], nb, cnt, k, delta, wall_, scratch_t_[j], scratch_p_[j]);
         if (!(scratch_t_[j] == time[e]) || !(scratch_p_[j] == pos[e])) any = true;
       }
       ++iterations;

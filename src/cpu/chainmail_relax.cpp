@@ -18,9 +18,9 @@ namespace {
 // when some axis has an empty box intersection (or no neighbour), where the caller falls back
 // to the general rule with its conflict handling.
 inline bool relax_fast(const Model& m, const float* W, const Vec3* pos, int x, int y, int z, Index i, float omega,
-                       Vec3& out) {
+                       const Wall& wall, Vec3& out) {
   float sx = 0, sY = 0, sZ = 0, sw = 0;
-  float lo[3] = {-kInf, -kInf, -kInf}, hi[3] = {kInf, kInf, kInf};
+  float lo[3] = {wall.lo[0], wall.lo[1], wall.lo[2]}, hi[3] = {wall.hi[0], wall.hi[1], wall.hi[2]};
   int count = 0;
   auto visit = [&](Index n, int axis, int side, const LinkLimits& L) {
     ++count;
@@ -65,7 +65,7 @@ inline bool relax_fast(const Model& m, const float* W, const Vec3* pos, int x, i
 // Loads of 16 bytes at pos[n] read pos[n + 1].x, which exists for every neighbour n of an
 // interior element (n <= i + sz and i <= size - 2). That element may be one of the colour being
 // written by another thread at the same moment: its value lands in lane 3 and is never used.
-template <int A, int S, bool First>
+template <int A, int S>
 inline void visit_sse(const Vec3* pos, const float* W, const LinkLimits* link, Index n, Index li, __m128& sum,
                       float& sw, __m128& lo, __m128& hi) {
   const __m128 pn = _mm_loadu_ps(&pos[n].x);
@@ -87,26 +87,23 @@ inline void visit_sse(const Vec3* pos, const float* W, const LinkLimits* link, I
   const __m128 hi_off = S > 0 ? _mm_shuffle_ps(L, L, hi_sel) : _mm_xor_ps(_mm_shuffle_ps(L, L, hi_sel), hi_neg);
   const __m128 l = _mm_add_ps(pn, lo_off);
   const __m128 h = _mm_add_ps(pn, hi_off);
-  if (First) {
-    lo = l;  // -inf > l ? -inf : l is l for every l
-    hi = h;
-  } else {
-    lo = _mm_max_ps(lo, l);
-    hi = _mm_min_ps(hi, h);
-  }
+  lo = _mm_max_ps(lo, l);
+  hi = _mm_min_ps(hi, h);
 }
 
 // Returns false on an empty intersection (caller falls back to the general rule).
 inline bool relax_interior_sse(const LinkLimits* L0, const LinkLimits* L1, const LinkLimits* L2, const float* W,
-                               const Vec3* pos, Index i, Index sy, Index sz, float omega, Vec3& out) {
-  __m128 sum = _mm_setzero_ps(), lo, hi;
+                               const Vec3* pos, Index i, Index sy, Index sz, float omega, const Wall& wall, Vec3& out) {
+  __m128 sum = _mm_setzero_ps();
+  __m128 lo = _mm_setr_ps(wall.lo[0], wall.lo[1], wall.lo[2], 0.0f);
+  __m128 hi = _mm_setr_ps(wall.hi[0], wall.hi[1], wall.hi[2], 0.0f);
   float sw = 0;
-  visit_sse<0, +1, true>(pos, W, L0, i - 1, i - 1, sum, sw, lo, hi);
-  visit_sse<0, -1, false>(pos, W, L0, i + 1, i, sum, sw, lo, hi);
-  visit_sse<1, +1, false>(pos, W, L1, i - sy, i - sy, sum, sw, lo, hi);
-  visit_sse<1, -1, false>(pos, W, L1, i + sy, i, sum, sw, lo, hi);
-  visit_sse<2, +1, false>(pos, W, L2, i - sz, i - sz, sum, sw, lo, hi);
-  visit_sse<2, -1, false>(pos, W, L2, i + sz, i, sum, sw, lo, hi);
+  visit_sse<0, +1>(pos, W, L0, i - 1, i - 1, sum, sw, lo, hi);
+  visit_sse<0, -1>(pos, W, L0, i + 1, i, sum, sw, lo, hi);
+  visit_sse<1, +1>(pos, W, L1, i - sy, i - sy, sum, sw, lo, hi);
+  visit_sse<1, -1>(pos, W, L1, i + sy, i, sum, sw, lo, hi);
+  visit_sse<2, +1>(pos, W, L2, i - sz, i - sz, sum, sw, lo, hi);
+  visit_sse<2, -1>(pos, W, L2, i + sz, i, sum, sw, lo, hi);
   if (_mm_movemask_ps(_mm_cmpgt_ps(lo, hi)) & 7) return false;
   const __m128 avg = _mm_div_ps(sum, _mm_set1_ps(sw));
   const __m128 cur = _mm_loadu_ps(&pos[i].x);
@@ -129,6 +126,7 @@ struct RelaxCtx {
   const std::uint8_t* F;
   Vec3* P;
   float threshold, omega;
+  Wall wall;
 };
 
 // One colour of one brick: the elements (x + y + z) % 2 == colour, visited row by row.
@@ -151,16 +149,16 @@ inline float relax_brick(const RelaxCtx& c, Index b, int colour, bool& any) {
         Vec3 p;
 #if defined(__SSE2__)
         const bool interior = yz_interior && x > 0 && x + 1 < nx;
-        const bool ok = interior ? relax_interior_sse(c.L0, c.L1, c.L2, c.W, c.P, i, sy, sz, c.omega, p)
-                                 : relax_fast(m, c.W, c.P, x, y, z, i, c.omega, p);
+        const bool ok = interior ? relax_interior_sse(c.L0, c.L1, c.L2, c.W, c.P, i, sy, sz, c.omega, c.wall, p)
+                                 : relax_fast(m, c.W, c.P, x, y, z, i, c.omega, c.wall, p);
 #else
-        const bool ok = relax_fast(m, c.W, c.P, x, y, z, i, c.omega, p);
+        const bool ok = relax_fast(m, c.W, c.P, x, y, z, i, c.omega, c.wall, p);
 #endif
         if (!ok) {
           // Conflicting boxes (or an isolated element): the general rule decides.
           const int cnt = ChainMailCpu::gather(m, c.P, c.time, x, y, z, i, nb);
           if (cnt == 0) continue;
-          p = relax_element(nb, cnt, c.P[i], c.omega);
+          p = relax_element(nb, cnt, c.P[i], c.omega, c.wall);
         }
         const Vec3 d = p - c.P[i];
         const float corr = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
@@ -186,7 +184,7 @@ RelaxStats ChainMailCpu::relax(const Model& m, std::vector<Vec3>& pos, const std
   std::vector<std::uint8_t>& work = hot_;
   const RelaxCtx ctx{&m,         &grid_,      m.link[0].data(), m.link[1].data(), m.link[2].data(),
                      weight_.data(), time.data(), flags.data(),     pos.data(),       threshold,
-                     omega};
+                     omega,      wall_};
   for (int s = 0; s < sweeps; ++s) {
     grid_.dilate_to_list(work, list_);
     if (list_.empty()) break;

@@ -17,18 +17,23 @@ void CpuBackend::load(const Model& m, const Params& p, const State& s) {
   for (Index i = 0; i < m.size(); ++i)
     if (flags_[i] & kFixed) flags_[i] = 0;
   chainmail_.init(m, p.solver.brick_size);
+  chainmail_.set_wall(solver::make_wall(m.dims, p.dynamics.margin));
   layer_.init(chainmail_.grid());
   // Anything that carries velocity or is off rest must be looked at by the first frame.
   const auto& g = chainmail_.grid();
   for (Index i = 0; i < m.size(); ++i)
     if (!(vel_[i] == Vec3{}) || !(pos_[i] == m.rest(i))) chainmail_.touched()[g.brick_of_index(i)] = 1;
   chainmail_.hot() = chainmail_.touched();
+  restorer_.init(m);
+  unchecked_.assign(static_cast<std::size_t>(g.count), 1);  // a loaded state is checked once
 }
 
 void CpuBackend::set_params(const Params& p) {
   const bool bricks_changed = p.solver.brick_size != p_.solver.brick_size;
   p_ = p;
   k_ = dynamics::make_constants(p.dynamics, m_->dims);
+  chainmail_.set_wall(solver::make_wall(m_->dims, p.dynamics.margin));
+  std::fill(unchecked_.begin(), unchecked_.end(), 1);  // a new margin may put elements outside the wall
   if (bricks_changed) {
     State s;
     download(s);
@@ -74,9 +79,22 @@ RelaxStats CpuBackend::relax(int sweeps) {
   return st;
 }
 
+RestoreStats CpuBackend::restore_links() {
+  auto& touched = chainmail_.touched();
+  for (std::size_t b = 0; b < unchecked_.size(); ++b) unchecked_[b] |= touched[b];
+  chainmail_.grid().dilate_to_list(unchecked_, check_list_);
+  const RestoreStats st = restorer_.run(*m_, chainmail_.grid(), check_list_, pos_, flags_, chainmail_.wall(), touched);
+  std::fill(unchecked_.begin(), unchecked_.end(), 0);
+  // Bricks the restoration moved are touched (the velocity layer visits them); relaxation
+  // looks at them again next frame.
+  for (std::size_t b = 0; b < touched.size(); ++b)
+    if (touched[b]) chainmail_.hot()[b] = 1;
+  return st;
+}
+
 void CpuBackend::velocity_layer(SpeedStats* speeds) {
   LayerBuffers buf{&pos_, &pre_, &vel_, &flags_};
-  layer_.apply(*m_, k_, chainmail_.grid(), buf, chainmail_.touched(), chainmail_.hot(), speeds);
+  layer_.apply(*m_, k_, chainmail_.grid(), buf, chainmail_.touched(), chainmail_.hot(), unchecked_, speeds);
   active_ = std::max(active_, layer_.last_bricks());
 }
 

@@ -7,6 +7,7 @@
 #include "cpu/chainmail_cpu.hpp"
 #include "cpu/velocity_layer_cpu.hpp"
 #include "hpcm/backend.hpp"
+#include "solver/link_restore.hpp"
 
 namespace hpcm::cpu {
 
@@ -20,6 +21,7 @@ class CpuBackend final : public Backend {
   void snapshot() override {}
   PropagateStats propagate() override;
   RelaxStats relax(int sweeps) override;
+  RestoreStats restore_links() override;
   void velocity_layer(SpeedStats* speeds) override;
   Index active_bricks() const override { return active_; }
   void mark(int slot) override;
@@ -39,6 +41,9 @@ class CpuBackend final : public Backend {
   std::vector<Vec3> targets_;
   ChainMailCpu chainmail_;
   VelocityLayerCpu layer_;
+  solver::LinkRestorer restorer_;
+  std::vector<std::uint8_t> unchecked_;  ///< bricks whose positions changed since the last link check
+  std::vector<Index> check_list_;
   Index active_ = 0;
   std::chrono::steady_clock::time_point marks_[8];
 };

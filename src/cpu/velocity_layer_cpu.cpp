@@ -10,7 +10,8 @@ using dynamics::LayerConstants;
 using dynamics::velocity_update;
 
 void VelocityLayerCpu::apply(const Model& m, const LayerConstants& k, const BrickGrid& grid, LayerBuffers buf,
-                             std::vector<std::uint8_t>& touched, std::vector<std::uint8_t>& hot, SpeedStats* speeds) {
+                             std::vector<std::uint8_t>& touched, std::vector<std::uint8_t>& hot, std::vector<std::uint8_t>& moved,
+                             SpeedStats* speeds) {
   list_.clear();
   for (Index b = 0; b < grid.count; ++b)
     if (touched[b] || has_velocity_[b]) list_.push_back(b);
@@ -49,7 +50,7 @@ void VelocityLayerCpu::apply(const Model& m, const LayerConstants& k, const Bric
           }
         }
     has_velocity_[b] = any_velocity;
-    if (moved_by_velocity) hot[b] = 1;
+    if (moved_by_velocity) hot[b] = moved[b] = 1;
     touched[b] = 0;
     if (speeds) partial_[j] = local;
   }

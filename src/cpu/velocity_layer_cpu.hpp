@@ -24,9 +24,10 @@ class VelocityLayerCpu {
  public:
   void init(const BrickGrid& grid) { has_velocity_.assign(static_cast<std::size_t>(grid.count), 0); }
   /// Runs the layer over touched bricks and bricks with velocity; marks bricks the layer moved
-  /// in `hot` (relaxation must revisit them) and clears `touched`.
+  /// in `hot` (relaxation must revisit them) and in `moved`, and clears `touched`.
   void apply(const Model& m, const dynamics::LayerConstants& k, const BrickGrid& grid, LayerBuffers buf,
-             std::vector<std::uint8_t>& touched, std::vector<std::uint8_t>& hot, SpeedStats* speeds);
+             std::vector<std::uint8_t>& touched, std::vector<std::uint8_t>& hot, std::vector<std::uint8_t>& moved,
+             SpeedStats* speeds);
   Index last_bricks() const { return last_bricks_; }
   void clear() { std::fill(has_velocity_.begin(), has_velocity_.end(), 0); }
 

@@ -18,6 +18,7 @@
 
 #include "cuda/kernels.hpp"
 #include "hpcm/backend.hpp"
+#include "solver/link_restore.hpp"
 #include "solver/schedule.hpp"
 
 namespace hpcm::gpu {
@@ -29,9 +30,18 @@ struct Ctl {
   LayerCtl layer;
 };
 
+/// Tolerance of the link between i and its + neighbour along a: the material's tau at the
+/// pair's mean HU (MaterialTable::link, same float operations).
+inline float link_tau(const Model& m, const MaterialTable& mat, Index i, int a) {
+  const Index sx[3] = {1, m.dims.x, static_cast<Index>(m.dims.x) * m.dims.y};
+  const float mean = 0.5f * (m.hu[static_cast<std::size_t>(i)] + m.hu[static_cast<std::size_t>(i + sx[a])]);
+  return mat.tau(mean);
+}
+
 /// Compact links reproduce the CPU Model bit for bit when every link is
-/// limits_from_tau(tau, w(mean HU)) of the model's material; otherwise explicit limits are stored.
-inline bool compact_links_match(const Model& m, const MaterialW& mat) {
+/// limits_from_tau(tau, w) of the model's material at the pair's mean HU; otherwise explicit
+/// limits are stored.
+inline bool compact_links_match(const Model& m, const MaterialTable& table, const MaterialW& mat) {
   const Index sx[3] = {1, m.dims.x, static_cast<Index>(m.dims.x) * m.dims.y};
   const int d[3] = {m.dims.x, m.dims.y, m.dims.z};
   for (Index i = 0; i < m.size(); ++i) {
@@ -41,7 +51,7 @@ inline bool compact_links_match(const Model& m, const MaterialW& mat) {
       if (ca[a] + 1 >= d[a]) continue;
       const LinkLimits& L = m.link[a][static_cast<std::size_t>(i)];
       const float mean = 0.5f * (m.hu[static_cast<std::size_t>(i)] + m.hu[static_cast<std::size_t>(i + sx[a])]);
-      const LinkLimits r = limits_from_tau(L.shear, material_w(mat, mean));
+      const LinkLimits r = limits_from_tau(link_tau(m, table, i, a), material_w(mat, mean));
       if (std::memcmp(&r, &L, sizeof r) != 0) return false;
     }
   }
@@ -85,6 +95,7 @@ class DeviceBackend final : public Backend {
 
   void load(const Model& m, const Params& p, const State& s) override {
     p.validate();
+    restorer_ready_ = false;
     const Index n = m.size();
     if (static_cast<Index>(s.pos.size()) != n || static_cast<Index>(s.vel.size()) != n ||
         static_cast<Index>(s.flags.size()) != n)
@@ -98,6 +109,7 @@ class DeviceBackend final : public Backend {
     m_ = &m;
     p_ = p;
     k_ = dynamics::make_constants(p.dynamics, m.dims);
+    wall_ = solver::make_wall(m.dims, p.dynamics.margin);
     L_ = Lattice{};
     L_.nx = m.dims.x;
     L_.ny = m.dims.y;
@@ -114,7 +126,7 @@ class DeviceBackend final : public Backend {
         L_.mat.hu[k] = pts[k].hu;
         L_.mat.w[k] = pts[k].w;
       }
-      compact_ = compact_links_match(m, L_.mat);
+      compact_ = compact_links_match(m, p.material, L_.mat);
     }
 
     const std::size_t N = static_cast<std::size_t>(n), NB = static_cast<std::size_t>(L_.grid.count);
@@ -137,6 +149,7 @@ class DeviceBackend final : public Backend {
     L_.changed = alloc<std::uint8_t>(NB, "brick flags");
     L_.has_vel = alloc<std::uint8_t>(NB, "brick flags");
     L_.wave = alloc<std::uint8_t>(NB, "brick flags");
+    L_.unchecked = alloc<std::uint8_t>(NB, "brick flags");
     save_touched_ = alloc<std::uint8_t>(NB, "brick flags");
     save_hot_ = alloc<std::uint8_t>(NB, "brick flags");
     relax_list_ = alloc<int>(NB, "relaxation brick list");
@@ -159,7 +172,8 @@ class DeviceBackend final : public Backend {
     if (compact_) {
       x_.upload(const_cast<float*>(L_.hu), m.hu.data(), N * sizeof(float));
       for (int a = 0; a < 3; ++a) {
-        for (std::size_t i = 0; i < N; ++i) buf[i] = m.link[a][i].shear;
+        const int da[3] = {m.dims.x, m.dims.y, m.dims.z};
+        for (std::size_t i = 0; i < N; ++i) buf[i] = m.coords(static_cast<Index>(i))[a] + 1 < da[a] ? link_tau(m, p.material, static_cast<Index>(i), a) : 0.0f;
         x_.upload(const_cast<float*>(L_.ltau[a]), buf.data(), N * sizeof(float));
       }
     } else {
@@ -184,6 +198,8 @@ class DeviceBackend final : public Backend {
     x_.zero(L_.changed, NB);
     x_.zero(L_.has_vel, NB);
     x_.zero(L_.wave, NB);
+    std::vector<std::uint8_t> all(NB, 1);
+    x_.upload(L_.unchecked, all.data(), NB);  // a loaded state is checked once
     x_.zero(ctl_, sizeof(Ctl));
 
     delta_ = solver::bucket_width(m);
@@ -200,7 +216,12 @@ class DeviceBackend final : public Backend {
     const bool bricks_changed = p.solver.brick_size != p_.solver.brick_size;
     p_ = p;
     k_ = dynamics::make_constants(p.dynamics, m_->dims);
-    x_.invalidate();  // the relaxation graph holds the threshold
+    wall_ = solver::make_wall(m_->dims, p.dynamics.margin);
+    x_.invalidate();  // the relaxation graph holds the threshold and the wall
+    {
+      std::vector<std::uint8_t> all(static_cast<std::size_t>(L_.grid.count), 1);
+      x_.upload(L_.unchecked, all.data(), all.size());  // a new margin may put elements outside the wall
+    }
     if (bricks_changed) {
       State s;
       download(s);
@@ -273,6 +294,7 @@ class DeviceBackend final : public Backend {
       a.sp = sp_;
       a.list_cap = list_cap_;
       a.delta = static_cast<double>(delta_);
+      a.wall = wall_;
       a.max_sweeps = p_.solver.max_propagation_sweeps;
       a.ctl = &ctl_->prop;
       x_.propagate(a);
@@ -309,6 +331,48 @@ class DeviceBackend final : public Backend {
     return st;
   }
 
+  /// The link restoration runs on a host copy with the host schedule (solver::LinkRestorer),
+  /// so it computes exactly the CPU backend's floats; it costs a download of the positions
+  /// and flags in frames where something moved. A device schedule is future work.
+  RestoreStats restore_links() override {
+    const std::size_t N = static_cast<std::size_t>(L_.n), NB = static_cast<std::size_t>(L_.grid.count);
+    host_unchecked_.resize(NB);
+    host_touched_.resize(NB);
+    x_.download(host_unchecked_.data(), L_.unchecked, NB);
+    x_.download(host_touched_.data(), L_.touched, NB);
+    x_.sync();
+    bool any = false;
+    for (std::size_t b = 0; b < NB; ++b) {
+      host_unchecked_[b] = static_cast<std::uint8_t>(host_unchecked_[b] | host_touched_[b]);
+      any = any || host_unchecked_[b];
+    }
+    if (!any) return {};
+    L_.grid.dilate_to_list(host_unchecked_, check_list_);
+    host_pos_.resize(N);
+    host_flags_.resize(N);
+    x_.download(host_pos_.data(), L_.pos, N * sizeof(Vec3));
+    x_.download(host_flags_.data(), L_.flags, N);
+    x_.sync();
+    if (!restorer_ready_) {
+      restorer_.init(*m_);
+      restorer_ready_ = true;
+    }
+    std::vector<std::uint8_t> moved(NB, 0);
+    const RestoreStats st = restorer_.run(*m_, L_.grid, check_list_, host_pos_, host_flags_, wall_, moved);
+    if (st.moved > 0) {
+      x_.upload(L_.pos, host_pos_.data(), N * sizeof(Vec3));
+      for (std::size_t b = 0; b < NB; ++b) host_touched_[b] = static_cast<std::uint8_t>(host_touched_[b] | moved[b]);
+      x_.upload(L_.touched, host_touched_.data(), NB);
+      host_hot_.resize(NB);
+      x_.download(host_hot_.data(), L_.hot, NB);
+      x_.sync();
+      for (std::size_t b = 0; b < NB; ++b) host_hot_[b] = static_cast<std::uint8_t>(host_hot_[b] | moved[b]);
+      x_.upload(L_.hot, host_hot_.data(), NB);
+    }
+    x_.zero(L_.unchecked, NB);
+    return st;
+  }
+
   RelaxStats relax(int sweeps) override {
     RelaxStats st;
     if (sweeps <= 0) return st;
@@ -319,6 +383,7 @@ class DeviceBackend final : public Backend {
     a.ctl = &ctl_->relax;
     a.threshold = p_.solver.relax_threshold;
     a.omega = p_.solver.relax_omega;
+    a.wall = wall_;
     a.sweeps = sweeps;
     x_.relax(a);
     // sweeps, active_max and last_max are contiguous at the end of RelaxCtl
@@ -511,6 +576,13 @@ class DeviceBackend final : public Backend {
   Lattice L_{};
   bool compact_ = true;
   float delta_ = 1.0f;
+  // link restoration on the host (restore_links)
+  solver::LinkRestorer restorer_;
+  solver::Wall wall_;
+  bool restorer_ready_ = false;
+  std::vector<Vec3> host_pos_;
+  std::vector<std::uint8_t> host_flags_, host_unchecked_, host_touched_, host_hot_;
+  std::vector<Index> check_list_;
   std::vector<void*> blocks_;
   std::size_t held_ = 0;
   Ctl* ctl_ = nullptr;

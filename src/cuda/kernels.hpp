@@ -142,6 +142,7 @@ struct Lattice {
   std::uint8_t* changed = nullptr;  ///< relaxation scratch: changed in the current sweep
   std::uint8_t* has_vel = nullptr;  ///< carries velocity (velocity layer must visit)
   std::uint8_t* wave = nullptr;     ///< holds elements with a finite time of the last wave
+  std::uint8_t* unchecked = nullptr;  ///< positions changed since the last link check (restoration)
 
   HPCM_HD long long index(int x, int y, int z) const { return x + static_cast<long long>(nx) * (y + static_cast<long long>(ny) * z); }
   HPCM_HD void coords(long long i, int& x, int& y, int& z) const {
@@ -261,6 +262,7 @@ struct PropArgs {
   Vec3* sp = nullptr;
   int list_cap = 0;
   double delta = 1.0;   ///< bucket width (smallest link w), as ChainMailCpu
+  solver::Wall wall;    ///< boundary box of every clamp
   int max_sweeps = 0;
   PropCtl* ctl = nullptr;
 };
@@ -383,7 +385,7 @@ HPCM_HD void propagate_block(const PropArgs& a, PropShared& sh, B& blk) {
             L.coords(e, x, y, z);
             solver::Neighbour nb[6];
             const int c = gather(L, x, y, z, e, nb);
-            propagate_in_bucket(e, L.pre[e], nb, c, k, a.delta, a.st[j], a.sp[j]);
+            propagate_in_bucket(e, L.pre[e], nb, c, k, a.delta, a.wall, a.st[j], a.sp[j]);
             if (!(a.st[j] == L.time[e]) || !(a.sp[j] == L.pos[e])) sh.any = 1;
           }
         });
@@ -500,6 +502,7 @@ struct RelaxArgs {
   RelaxCtl* ctl = nullptr;
   float threshold = 1e-4f;
   float omega = 1.0f;   ///< over-relaxation factor (SolverParams::relax_omega)
+  solver::Wall wall;    ///< boundary box of every clamp
   int sweeps = 0;
 };
 
@@ -562,7 +565,7 @@ HPCM_HD void relax_colour_block(const RelaxArgs& a, int s, int colour, RelaxShar
         const int c = gather(L, x, y, z, i, nb);
         if (c == 0) continue;
         const Vec3 cur = L.pos[i];
-        const Vec3 p = solver::relax_element(nb, c, cur, a.omega);
+        const Vec3 p = solver::relax_element(nb, c, cur, a.omega, a.wall);
         const Vec3 d = p - cur;
         const float corr = sqrtf(d.x * d.x + d.y * d.y + d.z * d.z);
         if (!(corr >= a.threshold) || corr == 0.0f) continue;  // small corrections are skipped
@@ -724,7 +727,7 @@ HPCM_HD void layer_block(const LayerArgs& a, long long b, LayerShared& sh, B& bl
   blk.each([&](int tid) {
     if (tid == 0) {
       L.has_vel[b] = sh.anyv ? 1 : 0;
-      if (sh.moved) L.hot[b] = 1;
+      if (sh.moved) L.hot[b] = L.unchecked[b] = 1;
       L.touched[b] = 0;
       at_add(&a.ctl->count, 1);
       if (a.speeds) {
