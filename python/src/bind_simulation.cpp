@@ -16,10 +16,16 @@ template <class Visit>
 void for_each_frame_report_field(Visit&& v) {
   v("frame", &FrameReport::frame, "frame number, from 0");
   v("deform", &FrameReport::deform, "deformation stage (a grab is held); False: idle stage");
-  v("grab_offset", &FrameReport::grab_offset, "|tool offset|, lattice units (0 when nothing is held)");
+  v("grab_offset", &FrameReport::grab_offset, "|tool offset| achieved, lattice units (0 when nothing is held)");
+  v("requested_offset", &FrameReport::requested_offset, "|tool offset| the input asked for, lattice units");
+  v("tool_limited", &FrameReport::tool_limited, "the tissue could not follow the tool this far: the pull was limited");
+  v("restored_links", &FrameReport::restored_links, "links found outside their box at the end of the ChainMail stage (then restored)");
+  v("restore_violation", &FrameReport::restore_violation, "the largest of those violations before restoring");
   v("moved_elements", &FrameReport::moved_elements, "elements whose position changed this frame");
   v("active_bricks", &FrameReport::active_bricks, "bricks that had work this frame");
   v("max_link_violation", &FrameReport::max_link_violation, "largest link-box violation after the ChainMail stage; -1: not measured");
+  v("min_cell_jacobian", &FrameReport::min_cell_jacobian, "smallest cell corner Jacobian determinant at frame end; -1: not measured");
+  v("folded_cells", &FrameReport::folded_cells, "cells with a corner determinant <= 0 at frame end; -1: not measured");
   v("propagate_sweeps", &FrameReport::propagate_sweeps, "propagation sweeps this frame");
   v("relax_sweeps", &FrameReport::relax_sweeps, "relaxation sweeps this frame");
   v("propagate_converged", &FrameReport::propagate_converged, "False when the propagation sweep cap was hit");
@@ -96,6 +102,14 @@ Index element_of(const Simulation& sim, py::handle centre) {
   return m.index(int(c[0]), int(c[1]), int(c[2]));
 }
 
+StepOptions step_options(bool speeds, bool link_violation, bool cell_jacobian) {
+  StepOptions o;
+  o.speeds = speeds;
+  o.link_violation = link_violation;
+  o.cell_jacobian = cell_jacobian;
+  return o;
+}
+
 Vec3 vec3_from(py::handle v, const char* what) {
   const auto c = v.cast<std::vector<float>>();
   if (c.size() != 3) throw Error(std::string(what) + " must be 3 numbers (dx, dy, dz) in lattice units");
@@ -122,6 +136,12 @@ py::dict condition_dict(const ConditionResult& c) {
   d["finite"] = c.finite;
   d["max_boundary_excess"] = c.max_boundary_excess;
   d["max_bone_velocity"] = c.max_bone_velocity;
+  d["max_link_violation"] = c.max_link_violation;
+  d["min_cell_jacobian"] = c.min_cell_jacobian;
+  d["max_folded_cells"] = c.max_folded_cells;
+  d["max_requested_offset"] = c.max_requested_offset;
+  d["max_achieved_offset"] = c.max_achieved_offset;
+  d["first_limited_frame"] = c.first_limited_frame;
   d["centre_rest"] = vec3_tuple(c.centre_rest);
   std::vector<Vec3> track = c.centre_track;
   const auto n = static_cast<py::ssize_t>(track.size());
@@ -234,7 +254,13 @@ indexed [x, y, z] with x right->left, y anterior->posterior (anterior is -y), z 
       .def_property_readonly("grab_centre", [](const Simulation& s) -> py::object {
             return s.grab_centre() < 0 ? py::object(py::none()) : py::object(int3_tuple(s.model().coords(s.grab_centre())));
           })
-      .def_property_readonly("tool_offset", [](const Simulation& s) { return vec3_tuple(s.tool_offset()); })
+      .def_property_readonly("tool_offset", [](const Simulation& s) { return vec3_tuple(s.tool_offset()); },
+                             "the offset the grabbed elements follow (the requested one, limited to what the tissue allows)")
+      .def_property_readonly("requested_offset", [](const Simulation& s) { return vec3_tuple(s.requested_offset()); })
+      .def_property_readonly("tool_limited", &Simulation::tool_limited)
+      .def_property_readonly("tool_limit", [](const Simulation& s) {
+            return py::make_tuple(vec3_tuple(s.tool_limit_lo()), vec3_tuple(s.tool_limit_hi()));
+          }, "feasible tool offsets of the current grab, ((lo x, y, z), (hi x, y, z)), lattice units")
       .def_property_readonly("grabbed", [](const Simulation& s) {
             return py::array_t<Index>(static_cast<py::ssize_t>(s.grabbed().size()), s.grabbed().data());
           }, "linear indices (x + nx (y + ny z)) of the grabbed elements (a copy)")
@@ -255,18 +281,15 @@ indexed [x, y, z] with x right->left, y anterior->posterior (anterior is -y), z 
       .def("move_tool", [](Simulation& s, py::handle offset) { s.move_tool(vec3_from(offset, "tool offset")); },
            py::arg("offset"), "Move the grabbed elements to their grab positions + offset (lattice units).")
       .def("release", &Simulation::release)
-      .def("step", [](Simulation& s, bool speeds, bool link_violation) {
-            StepOptions o;
-            o.speeds = speeds;
-            o.link_violation = link_violation;
+      .def("step", [](Simulation& s, bool speeds, bool link_violation, bool cell_jacobian) {
+            const StepOptions o = step_options(speeds, link_violation, cell_jacobian);
             py::gil_scoped_release release;
             return s.step(o);
-          }, py::arg("speeds") = true, py::arg("link_violation") = false, "One frame; returns its FrameReport.")
-      .def("run", [](Simulation& s, int frames, bool speeds, bool link_violation) {
+          }, py::arg("speeds") = true, py::arg("link_violation") = false, py::arg("cell_jacobian") = false,
+          "One frame; returns its FrameReport. link_violation / cell_jacobian: also measure those (O(N) each).")
+      .def("run", [](Simulation& s, int frames, bool speeds, bool link_violation, bool cell_jacobian) {
             if (frames < 0) throw Error("frames " + std::to_string(frames) + " must be >= 0");
-            StepOptions o;
-            o.speeds = speeds;
-            o.link_violation = link_violation;
+            const StepOptions o = step_options(speeds, link_violation, cell_jacobian);
             std::vector<FrameReport> reports;
             reports.reserve(static_cast<std::size_t>(frames));
             {
@@ -274,7 +297,7 @@ indexed [x, y, z] with x right->left, y anterior->posterior (anterior is -y), z 
               for (int f = 0; f < frames; ++f) reports.push_back(s.step(o));
             }
             return report_columns(reports);
-          }, py::arg("frames"), py::arg("speeds") = true, py::arg("link_violation") = false,
+          }, py::arg("frames"), py::arg("speeds") = true, py::arg("link_violation") = false, py::arg("cell_jacobian") = false,
           "`frames` frames with the tool as it is; returns per-frame statistics as numpy columns "
           "(one array per FrameReport field).")
       .def("reset", &Simulation::reset, "Back to rest (X = X0, V = 0), grab released, frame 0.")
@@ -306,13 +329,11 @@ indexed [x, y, z] with x right->left, y anterior->posterior (anterior is -y), z 
       .def(py::init<const Scenario&, Simulation&>(), py::arg("scenario"), py::arg("simulation"), py::keep_alive<1, 3>())
       .def_property_readonly("done", &ScenarioPlayer::done)
       .def_property_readonly("frame", &ScenarioPlayer::frame)
-      .def("step", [](ScenarioPlayer& p, bool speeds, bool link_violation) {
-            StepOptions o;
-            o.speeds = speeds;
-            o.link_violation = link_violation;
+      .def("step", [](ScenarioPlayer& p, bool speeds, bool link_violation, bool cell_jacobian) {
+            const StepOptions o = step_options(speeds, link_violation, cell_jacobian);
             py::gil_scoped_release release;
             return p.step(o);
-          }, py::arg("speeds") = true, py::arg("link_violation") = false,
+          }, py::arg("speeds") = true, py::arg("link_violation") = false, py::arg("cell_jacobian") = false,
           "Applies this frame's input (grab / move / release) and steps the simulation.");
 
   m.def("run_experiment", &run_experiment_py, py::arg("lattice"), py::arg("params") = Params{},

@@ -49,7 +49,7 @@ LPS_TO_RAS = np.diag([-1.0, -1.0, 1.0, 1.0])
 # inversion on the output grid that smooths: next to the grab, where the field is steepest,
 # its inverse is off by up to ~0.5 mm (checked with scipy: |X + u(X) - x|), and half a voxel
 # at a skin/air edge is hundreds of HU. With 50 iterations (default 20) the measured
-# difference is 3-6 % (DICOM at 0.98 mm voxels the largest); warping with the field's wrong
+# difference is 4-6 % (DICOM at 0.98 mm voxels the largest); warping with the field's wrong
 # direction gives > 100 %.
 PLASTIMATCH_INVERSION_ITERATIONS = 50
 WARP_TOLERANCE = 0.10
