@@ -104,6 +104,7 @@ void read_solver(Section& root, Params& p) {
     }
   }
   s.read("max_propagation_sweeps", q.max_propagation_sweeps);
+  s.read("sleep", q.sleep);
   s.finish();
 }
 
@@ -131,6 +132,7 @@ void read_dynamics(Section& root, Params& p) {
   s.read("beta", d.beta);
   read_per_tissue(s, "rho", d.rho);
   s.read("margin", d.margin);
+  s.read("sleep_speed", d.sleep_speed);
   s.finish();
 }
 
@@ -215,6 +217,8 @@ std::string write_params(const Params& p, const std::string& header) {
   w.kv("relax_omega = " + fmt_float(p.solver.relax_omega), "[1, 1.95] over-relaxation of each relaxation step (1 = plain Gauss-Seidel)");
   w.kv("anchors = " + quoted(anchor_mode_name(p.solver.anchors)), "\"none\" | \"bone\" | \"border\": elements held FIXED every frame");
   w.kv("max_propagation_sweeps = " + std::to_string(p.solver.max_propagation_sweeps), "[1, 10000000] safety cap on propagation sweeps per frame");
+  w.kv(std::string("sleep = ") + (p.solver.sleep ? "true" : "false"),
+       "true | false: bricks where nothing moves cost nothing; false keeps every brick awake (exact reference)");
   w.raw("");
 
   w.raw("[dynamics]");
@@ -232,6 +236,7 @@ std::string write_params(const Params& p, const std::string& header) {
   w.kv("beta = " + fmt_float(p.dynamics.beta), "[0, 2] global inertia gain: X <- X+ + beta rho V");
   w.kv("rho = " + per_tissue(p.dynamics.rho), "each [0, 2] per-class position gain");
   w.kv("margin = " + fmt_float(p.dynamics.margin), "[0, 64] lattice units: positions stay in [-margin, N - 1 + margin]");
+  w.kv("sleep_speed = " + fmt_float(p.dynamics.sleep_speed), "[0, 0.01] lattice units / frame: slower velocities come to rest (with solver.sleep)");
   return w.str();
 }
 

@@ -106,9 +106,10 @@ TEST(ParamsFile, DefaultFileDocumentsEveryKeyWithItsRange) {
                           "relax_sweeps = 8", "relax_threshold = 0.0001", "relax_omega = 1.85", "anchors = \"bone\"",
                           "max_propagation_sweeps = 100000", "mode = \"viscoelastic\"", "alpha = 0.98", "b0 = 0.025",
                           "b1 = { air = 0.0, skin_fat = 0.2, muscle_organ = 0.2, bone = 0.2 }",
-                          "inverse_mass = { air = 1.0, skin_fat = 1.0, muscle_organ = 0.05, bone = 0.0 }", "s_min = 0.0",
+                          "inverse_mass = { air = 1.0, skin_fat = 1.0, muscle_organ = 0.15, bone = 0.0 }", "s_min = 0.0",
                           "s_max = 1.0", "dead_zone = 0.001", "v_max = 0.5", "beta = 1.0",
-                          "rho = { air = 1.0, skin_fat = 1.0, muscle_organ = 1.0, bone = 1.0 }", "margin = 2.0",
+                          "rho = { air = 1.0, skin_fat = 1.0, muscle_organ = 1.0, bone = 1.0 }", "margin = 2.0", "sleep = true",
+                          "sleep_speed = 0.00001",
                           "{ hu = -1000.0, tau = 0.5, w = 1.0 }", "{ hu = 700.0, tau = 0.005, w = 0.02 }", "preset"})
     EXPECT_CONTAINS(text, key);
   // Every "key = value" line carries a comment with its valid range or choices.
@@ -127,7 +128,7 @@ TEST(ParamsFile, DefaultFileDocumentsEveryKeyWithItsRange) {
                            comment.find("HU") != std::string::npos;
     EXPECT_TRUE(has_range) << "no range on: " << line;
   }
-  EXPECT_EQ(key_lines, 3 + 7 + 12);  // tissue + solver + dynamics keys; material points are an array
+  EXPECT_EQ(key_lines, 3 + 8 + 13);  // tissue + solver + dynamics keys; material points are an array
 }
 
 TEST(ParamsFile, ExactRoundTripOfOddValues) {
