@@ -223,12 +223,14 @@ void register_bench(CLI::App& app) {
     }
     write_text_file(o->out + "/bench.csv", csv.str());
     std::ostringstream fcsv;
-    fcsv << "condition,frame,stage,chainmail_ms,inertia_ms,snapshot_ms,sim_total_ms,active_bricks,propagate_sweeps,relax_sweeps\n";
+    fcsv << "condition,frame,stage,chainmail_ms,inertia_ms,snapshot_ms,sim_total_ms,active_bricks,propagate_sweeps,relax_sweeps,"
+            "active_elements\n";
     for (const auto& c : res)
       for (const auto& r : c.frames) {
-        std::snprintf(buf, sizeof buf, "%s,%d,%s,%.6f,%.6f,%.6f,%.6f,%lld,%d,%d\n", c.label.c_str(), r.frame,
+        std::snprintf(buf, sizeof buf, "%s,%d,%s,%.6f,%.6f,%.6f,%.6f,%lld,%d,%d,%lld\n", c.label.c_str(), r.frame,
                       r.deform ? "deform" : "idle", r.chainmail_ms, r.inertia_ms, r.snapshot_ms, r.sim_total_ms,
-                      static_cast<long long>(r.active_bricks), r.propagate_sweeps, r.relax_sweeps);
+                      static_cast<long long>(r.active_bricks), r.propagate_sweeps, r.relax_sweeps,
+                      static_cast<long long>(r.active_elements));
         fcsv << buf;
       }
     write_text_file(o->out + "/bench_frames.csv", fcsv.str());

@@ -14,7 +14,7 @@ std::string frames_csv_header() {
   for (int t = 0; t < kTissueCount; ++t) h += std::string(",mean_speed_") + tissue_name(t);
   for (int t = 0; t < kTissueCount; ++t) h += std::string(",max_speed_") + tissue_name(t);
   h += ",inertia_ms,snapshot_ms,propagate_sweeps,relax_sweeps";
-  h += ",requested_offset,tool_limited,restored_links,restore_violation,min_cell_jacobian,folded_cells\n";
+  h += ",requested_offset,tool_limited,restored_links,restore_violation,min_cell_jacobian,folded_cells,active_elements\n";
   return h;
 }
 
@@ -35,9 +35,9 @@ std::string frames_csv_row(const FrameReport& r) {
   }
   std::snprintf(buf, sizeof buf, ",%.6f,%.6f,%d,%d", r.inertia_ms, r.snapshot_ms, r.propagate_sweeps, r.relax_sweeps);
   s += buf;
-  std::snprintf(buf, sizeof buf, ",%.6g,%d,%lld,%.6g,%.6g,%lld\n", r.requested_offset, r.tool_limited ? 1 : 0,
+  std::snprintf(buf, sizeof buf, ",%.6g,%d,%lld,%.6g,%.6g,%lld,%lld\n", r.requested_offset, r.tool_limited ? 1 : 0,
                 static_cast<long long>(r.restored_links), r.restore_violation, r.min_cell_jacobian,
-                static_cast<long long>(r.folded_cells));
+                static_cast<long long>(r.folded_cells), static_cast<long long>(r.active_elements));
   return s + buf;
 }
 

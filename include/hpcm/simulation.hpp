@@ -18,7 +18,8 @@ struct FrameReport {
   Index restored_links = 0;     ///< links the restoration found outside their box (then restored)
   float restore_violation = 0;  ///< the largest of those violations before restoring
   Index moved_elements = 0;     ///< elements whose position changed this frame
-  Index active_bricks = 0;
+  Index active_bricks = 0;       ///< bricks that had work this frame (any stage)
+  Index active_elements = 0;    ///< elements in those bricks
   float max_link_violation = -1;  ///< after the ChainMail stage; -1 when not measured
   float min_cell_jacobian = -1;   ///< smallest cell corner Jacobian determinant at frame end; -1 when not measured
   Index folded_cells = -1;        ///< cells with a corner determinant <= 0 at frame end; -1 when not measured

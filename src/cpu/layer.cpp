@@ -10,8 +10,8 @@ Index VelocityLayer::bricks_with_velocity() const {
 }
 
 void VelocityLayer::apply(Storage& st, const dynamics::LayerConstants& k, bool all, std::vector<std::uint8_t>& touched,
-                          std::vector<std::uint8_t>& hot, std::vector<std::uint8_t>& moved, SpeedStats* speeds,
-                          WorkerPool& pool) {
+                          std::vector<std::uint8_t>& hot, std::vector<std::uint8_t>& moved,
+                          std::vector<std::uint8_t>& worked, SpeedStats* speeds, WorkerPool& pool) {
   // Work: bricks touched this frame or carrying velocity, merged along x into runs so that the
   // SIMD kernel sees rows longer than one brick.
   runs_.clear();
@@ -30,6 +30,7 @@ void VelocityLayer::apply(Storage& st, const dynamics::LayerConstants& k, bool a
         while (end < nb.x && on(end)) ++end;
         runs_.push_back({by, bz, bx, end});
         last_bricks_ += end - bx;
+        for (int c = bx; c < end; ++c) worked[static_cast<std::size_t>(row + c)] = 1;
         bx = end;
       }
     }

@@ -24,9 +24,11 @@ class VelocityLayer {
   }
   /// Runs the layer over touched bricks and bricks with velocity (every brick when `all`),
   /// writes X_{t+1} into p and q (the frame-end snapshot), marks bricks it moved in `hot` and
-  /// `moved`, and clears `touched`. Fills `speeds` when non-null.
+  /// `moved` and bricks it visited in `worked`, and clears `touched`. Fills `speeds` when
+  /// non-null.
   void apply(Storage& st, const dynamics::LayerConstants& k, bool all, std::vector<std::uint8_t>& touched,
-             std::vector<std::uint8_t>& hot, std::vector<std::uint8_t>& moved, SpeedStats* speeds, WorkerPool& pool);
+             std::vector<std::uint8_t>& hot, std::vector<std::uint8_t>& moved, std::vector<std::uint8_t>& worked,
+             SpeedStats* speeds, WorkerPool& pool);
   Index last_bricks() const { return last_bricks_; }
   /// Bricks whose elements carry velocity (for reporting).
   Index bricks_with_velocity() const;

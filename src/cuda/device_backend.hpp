@@ -381,6 +381,11 @@ class DeviceBackend final : public Backend {
     }
     return active_;
   }
+  /// Elements of the active bricks, counted as full bricks (the largest count of any stage).
+  Index active_elements() const override {
+    const Index b = active_bricks();
+    return std::min<Index>(L_.n, b * L_.grid.size * L_.grid.size * L_.grid.size);
+  }
 
   void mark(int slot) override {
     if (slot < 0 || slot >= 8) throw Error("mark: slot " + std::to_string(slot) + " is out of range [0, 7]");

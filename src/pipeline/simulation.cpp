@@ -188,6 +188,7 @@ FrameReport Simulation::step(const StepOptions& opt) {
   r.inertia_ms = b.elapsed_ms(3, 4);
   r.sim_total_ms = r.snapshot_ms + r.chainmail_ms + r.inertia_ms;
   r.active_bricks = b.active_bricks();
+  r.active_elements = b.active_elements();
   if (opt.speeds) {
     r.moved_elements = sp.moved;
     for (int t = 0; t < kTissueCount; ++t) {
