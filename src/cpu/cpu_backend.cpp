@@ -27,7 +27,6 @@ void CpuBackend::load(const Model& m, const Params& p, const State& s) {
   m_ = &m;
   p_ = p;
   k_ = dynamics::make_constants(p.dynamics, m.dims);
-  if (!p.solver.sleep) k_.sleep_speed = 0.0f;
   wall_ = solver::make_wall(m.dims, p.dynamics.margin);
   st_.load(m, s);
   grid_.init(m.dims, p.solver.brick_size);
@@ -57,7 +56,6 @@ void CpuBackend::set_params(const Params& p) {
   const bool bricks_changed = p.solver.brick_size != p_.solver.brick_size;
   p_ = p;
   k_ = dynamics::make_constants(p.dynamics, m_->dims);
-  if (!p.solver.sleep) k_.sleep_speed = 0.0f;
   wall_ = solver::make_wall(m_->dims, p.dynamics.margin);
   mark_all(unchecked_);  // a new margin may put elements outside the wall
   if (bricks_changed) {
@@ -151,7 +149,8 @@ RestoreStats CpuBackend::restore_links() {
 }
 
 void CpuBackend::velocity_layer(SpeedStats* speeds) {
-  layer_.apply(st_, k_, !p_.solver.sleep, touched_, hot_, unchecked_, worked_, speeds, *pool_);
+  layer_.apply(st_, k_, p_.solver.sleep ? p_.dynamics.sleep_speed : 0.0f, !p_.solver.sleep, touched_, hot_, unchecked_,
+               worked_, speeds, *pool_);
 }
 
 Index CpuBackend::active_bricks() const { return static_cast<Index>(std::count(worked_.begin(), worked_.end(), 1)); }
