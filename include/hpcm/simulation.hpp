@@ -77,7 +77,11 @@ class Simulation {
   /// Full state (downloaded from the backend when it changed).
   const State& state();
   Vec3 position(Index i) { return backend_->position(i); }
-  Backend& backend() { return *backend_; }
+  /// Direct access to the backend (it may change positions: the cached metrics are dropped).
+  Backend& backend() {
+    ++positions_version_;
+    return *backend_;
+  }
 
  private:
   void push_fixed();
@@ -96,6 +100,14 @@ class Simulation {
   Vec3 limit_lo_{}, limit_hi_{};
   std::vector<std::uint8_t> anchored_;  ///< per element: anchored at rest (grabbed elements excluded)
   int frame_ = 0;
+  // Integrity metrics of the current positions, kept while no brick had work.
+  struct Metric {
+    std::uint64_t version = ~std::uint64_t{0};
+    float value = 0;
+    Index count = 0;
+  };
+  std::uint64_t positions_version_ = 0;
+  Metric link_metric_, jacobian_metric_;
 };
 
 }  // namespace hpcm
