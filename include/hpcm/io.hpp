@@ -1,6 +1,7 @@
 #pragma once
 // Medical-image IO on ITK (library hpcm::io, optional): NIfTI, NRRD, MetaImage, DICOM series.
 // Volumes are reoriented to LPS index order on read (SPEC §2).
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -9,13 +10,34 @@
 
 namespace hpcm::io {
 
+/// What to do with DICOM slices that lie at the same position.
+enum class DicomDuplicates {
+  Error,  ///< refuse the series, naming the files (default)
+  First,  ///< keep the slice with the lowest InstanceNumber (then file name), drop the others
+};
+
 struct ReadOptions {
   std::string series_uid;  ///< DICOM directories with several series: which one
+  DicomDuplicates dicom_duplicates = DicomDuplicates::Error;
+  /// Skip files of a DICOM directory that are not readable DICOM instead of refusing the
+  /// directory (they are reported as a warning; a slice missing from the stack is still an error).
+  bool dicom_skip_unreadable = false;
+  /// Receives warnings (a volume read but worth a second look: HU outside the CT range, skipped
+  /// files). Empty: printed to stderr as "hpcm: warning: ...".
+  std::function<void(const std::string&)> warn;
 };
 
 /// Reads a volume file or a DICOM series directory; values in HU. Throws hpcm::Error with a
-/// one-line message naming the path on any failure.
+/// message naming the path on any failure: one line, then (only when a library printed
+/// something while reading) that library output as indented detail lines. Rejected: non-finite
+/// voxels, spacing that is zero, negative or not finite, HU outside [-32768, 65535], and DICOM
+/// series whose slices are not one evenly spaced stack (docs/io.md).
 Volume read_volume(const std::string& path, const ReadOptions& opt = {});
+
+/// Checks that `path` can be written as a volume (supported extension, an existing writable
+/// folder, no other file's data in the way) without writing anything: for commands that must
+/// fail before a long computation.
+void check_output_path(const std::string& path);
 
 /// One series of a DICOM directory (for listing and --series).
 struct DicomSeriesInfo {
