@@ -10,6 +10,8 @@ PKGS=(
   libglfw3-dev libimgui-dev libpng-dev libgl1-mesa-dev libgl1-mesa-dri
   python3 python3-matplotlib
   xvfb xauth
+  python3-pydicom            # hostile-input tests: damaged copies of a DICOM series
+  clang libclang-rt-14-dev   # sanitizer build (ASan + UBSan) and libFuzzer harnesses
 )
 missing=()
 for p in "${PKGS[@]}"; do

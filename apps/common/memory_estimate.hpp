@@ -15,7 +15,7 @@ namespace hpcm::cli {
 /// Measured peak bytes per lattice element (volume + model + state + CPU backend buffers),
 /// rounded up, per program.
 inline constexpr double kRunBytesPerElement = 160;         ///< hpcm run / bench
-inline constexpr double kExperimentBytesPerElement = 200;  ///< hpcm experiment (conditions in turn)
+inline constexpr double kExperimentBytesPerElement = 220;  ///< hpcm experiment (conditions in turn)
 inline constexpr double kViewerBytesPerElement = 200;      ///< hpcm-viewer (adds render buffers)
 
 namespace memory_detail {

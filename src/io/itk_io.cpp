@@ -361,10 +361,19 @@ Volume read_file(const std::string& path, std::vector<std::string>& warnings) {
   itk::ImageIOBase::Pointer io = make_io(f);
   const std::string name = detail::format_name(f);
   if (fs::file_size(path) == 0) throw Error(path + ": empty file, not a " + name + " volume");
-  // hpcm's header checks run first for the text formats: ITK would stop on some of these
-  // values with a less precise message, or take them (a negative spacing becomes positive).
+  // hpcm's header checks run before ITK sees the file: ITK would take some of these values
+  // (a negative spacing becomes positive, zero or NaN pixdim 1 mm), stop on others with a less
+  // precise message, or abort the process (a NaN NIfTI sform).
   if (f == Format::Nrrd || f == Format::Nhdr) detail::check_nrrd_header(path, read_text_header(path, true));
   if (f == Format::Mha || f == Format::Mhd) detail::check_metaimage_header(path, read_text_header(path, false));
+  if (f == Format::Nifti || f == Format::NiftiGz) {
+    unsigned char head[540] = {};
+    gzFile gz = gzopen(path.c_str(), "rb");
+    if (!gz) throw Error(path + ": cannot open");
+    const int n = gzread(gz, head, sizeof head);
+    gzclose(gz);
+    detail::check_nifti_header(path, head, n > 0 ? std::size_t(n) : 0);
+  }
   if (!io->CanReadFile(path.c_str()))
     throw Error(path + ": not a readable " + name + " file (corrupt or truncated header)");
   try {
