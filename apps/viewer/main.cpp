@@ -105,7 +105,13 @@ int main(int argc, char** argv) {
     }
     cli::check_lattice_memory(v.dims, cli::kViewerBytesPerElement, o.input.empty() ? "--phantom" : o.input);
     s.model = build_model(v, s.params);
-    if (s.scenario && !(s.scenario->name == "none" && s.scenario->grabs.empty())) s.scenario->validate(s.model);
+    if (s.scenario && !(s.scenario->name == "none" && s.scenario->grabs.empty())) {
+      try {
+        s.scenario->validate(s.model);
+      } catch (const Error& e) {
+        throw Error("--scenario " + o.scenario + ": " + e.what());  // name the file, not only the grab
+      }
+    }
 
     Viewer viewer(o, std::move(s));
     return viewer.run();
