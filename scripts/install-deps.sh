@@ -9,6 +9,8 @@ PKGS=(
   libcli11-dev libtomlplusplus-dev nlohmann-json3-dev
   libglfw3-dev libimgui-dev libpng-dev libgl1-mesa-dev libgl1-mesa-dri
   python3 python3-matplotlib
+  python3-dev pybind11-dev python3-numpy python3-pytest
+  python3-nibabel python3-pydicom python3-pil plastimatch
   xvfb xauth
   python3-pydicom            # hostile-input tests: damaged copies of a DICOM series
   clang libclang-rt-14-dev   # sanitizer build (ASan + UBSan) and libFuzzer harnesses

@@ -110,7 +110,7 @@ Volume load_volume_full(const VolumeSource& src) {
     ro.series_uid = src.series;
     ro.dicom_duplicates = src.dicom_duplicates == "first" ? io::DicomDuplicates::First : io::DicomDuplicates::Error;
     ro.dicom_skip_unreadable = src.dicom_skip_unreadable;
-    return io::read_volume(src.input, ro);
+    return io::read_volume_as_stored(src.input, ro);
 #else
     throw Error("--input " + src.input + ": hpcm was built without ITK, so only --phantom is available");
 #endif
@@ -121,21 +121,54 @@ Volume load_volume_full(const VolumeSource& src) {
   return make_phantom(po);
 }
 
-Volume load_volume(const VolumeSource& src) {
+namespace {
+// --roi (voxels of the input as stored) and --downsample, checked against the stored volume.
+Volume crop_to_roi_and_check_factor(Volume v, const VolumeSource& src, Int3* roi_lo, Int3* roi_hi) {
   if (src.downsample < 1) throw Error("--downsample " + std::to_string(src.downsample) + " is out of range: must be >= 1");
-  Volume v = load_volume_full(src);
+  *roi_lo = {0, 0, 0};
+  *roi_hi = v.dims;
   if (!src.roi.empty()) {
     const auto r = parse_ints(src.roi, "--roi", 6, 0, 2147483647);
-    v = crop(v, Int3{int(r[0]), int(r[1]), int(r[2])}, Int3{int(r[3]), int(r[4]), int(r[5])});
+    *roi_lo = Int3{int(r[0]), int(r[1]), int(r[2])};
+    *roi_hi = Int3{int(r[3]), int(r[4]), int(r[5])};
+    v = crop(v, *roi_lo, *roi_hi);
   }
-  if (src.downsample > 1) {
-    const int mind = std::min({v.dims.x, v.dims.y, v.dims.z});
-    if (src.downsample > mind)
-      throw Error("--downsample " + std::to_string(src.downsample) + " is larger than the smallest volume dimension " +
-                  std::to_string(mind));
-    v = downsample(v, src.downsample);
-  }
+  const int mind = std::min({v.dims.x, v.dims.y, v.dims.z});
+  if (src.downsample > mind)
+    throw Error("--downsample " + std::to_string(src.downsample) + " is larger than the smallest volume dimension " +
+                std::to_string(mind));
   return v;
+}
+}  // namespace
+
+#if defined(HPCM_WITH_ITK)
+io::Input load_input(const VolumeSource& src) {
+  Volume stored = load_volume_full(src);
+  io::InputOptions opt;
+  opt.downsample = src.downsample;
+  Int3 lo, hi;
+  stored = crop_to_roi_and_check_factor(std::move(stored), src, &lo, &hi);
+  io::Input in = io::prepare_input(std::move(stored), opt, src.input.empty() ? "phantom" : src.input);
+  in.roi = {lo, hi};
+  const Int3 left = in.left_out;
+  if (left.x || left.y || left.z)
+    std::fprintf(stderr,
+                 "note: --downsample %d uses complete %dx%dx%d blocks; the last %d, %d, %d voxels of the input's axes "
+                 "0, 1, 2 are not in the lattice (the deformed CT still covers them)\n",
+                 src.downsample, src.downsample, src.downsample, src.downsample, left.x, left.y, left.z);
+  return in;
+}
+#endif
+
+Volume load_volume(const VolumeSource& src) {
+#if defined(HPCM_WITH_ITK)
+  return load_input(src).lattice;
+#else
+  // Without ITK only the phantom exists, and it is stored in LPS order already.
+  Int3 lo, hi;
+  const Volume v = crop_to_roi_and_check_factor(load_volume_full(src), src, &lo, &hi);
+  return src.downsample > 1 ? downsample(v, src.downsample) : v;
+#endif
 }
 
 Params load_params_option(const std::string& path) {

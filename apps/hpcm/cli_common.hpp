@@ -7,6 +7,9 @@
 #include <string>
 
 #include "hpcm/hpcm.hpp"
+#if defined(HPCM_WITH_ITK)
+#include "hpcm/io.hpp"
+#endif
 
 namespace hpcm::cli {
 
@@ -24,10 +27,15 @@ struct VolumeSource {
   Int3 default_phantom{128, 128, 75};
 };
 void add_volume_options(CLI::App* cmd, VolumeSource& src);
-/// Loads (or generates), crops and down-samples. Throws hpcm::Error naming the option.
+/// Loads (or generates), crops to --roi (the input's own voxel indices), down-samples in the
+/// input's index order and reorients to the lattice's LPS order. Throws hpcm::Error naming the option.
 Volume load_volume(const VolumeSource& src);
-/// Original (not down-sampled) volume, for exports onto the input grid.
+/// The volume as stored: the input file's own index order and geometry, not cropped.
 Volume load_volume_full(const VolumeSource& src);
+#if defined(HPCM_WITH_ITK)
+/// load_volume with everything the exports need to come back to the input's grid.
+io::Input load_input(const VolumeSource& src);
+#endif
 
 /// "NX,NY,NZ" -> Int3, each in [lo, hi]; throws naming `option`.
 Int3 parse_int3(const std::string& s, const std::string& option, int lo, int hi);

@@ -14,7 +14,8 @@ std::string frames_csv_header() {
   std::string h = "frame,stage,grab_offset,moved_elements,active_bricks,max_link_violation,chainmail_ms,sim_total_ms";
   for (int t = 0; t < kTissueCount; ++t) h += std::string(",mean_speed_") + tissue_name(t);
   for (int t = 0; t < kTissueCount; ++t) h += std::string(",max_speed_") + tissue_name(t);
-  h += ",inertia_ms,snapshot_ms,propagate_sweeps,relax_sweeps\n";
+  h += ",inertia_ms,snapshot_ms,propagate_sweeps,relax_sweeps";
+  h += ",requested_offset,tool_limited,restored_links,restore_violation,min_cell_jacobian,folded_cells\n";
   return h;
 }
 
@@ -26,6 +27,9 @@ std::string frames_csv_row(const FrameReport& r) {
   require_finite(r.sim_total_ms, at + "sim_total_ms");
   require_finite(r.inertia_ms, at + "inertia_ms");
   require_finite(r.snapshot_ms, at + "snapshot_ms");
+  require_finite(r.requested_offset, at + "requested_offset");
+  require_finite(r.restore_violation, at + "restore_violation");
+  require_finite(r.min_cell_jacobian, at + "min_cell_jacobian");
   for (int t = 0; t < kTissueCount; ++t) {
     require_finite(r.mean_speed[t], at + "mean_speed_" + tissue_name(t));
     require_finite(r.max_speed[t], at + "max_speed_" + tissue_name(t));
@@ -44,7 +48,11 @@ std::string frames_csv_row(const FrameReport& r) {
     std::snprintf(buf, sizeof buf, ",%.9g", r.max_speed[t]);
     s += buf;
   }
-  std::snprintf(buf, sizeof buf, ",%.6f,%.6f,%d,%d\n", r.inertia_ms, r.snapshot_ms, r.propagate_sweeps, r.relax_sweeps);
+  std::snprintf(buf, sizeof buf, ",%.6f,%.6f,%d,%d", r.inertia_ms, r.snapshot_ms, r.propagate_sweeps, r.relax_sweeps);
+  s += buf;
+  std::snprintf(buf, sizeof buf, ",%.6g,%d,%lld,%.6g,%.6g,%lld\n", r.requested_offset, r.tool_limited ? 1 : 0,
+                static_cast<long long>(r.restored_links), r.restore_violation, r.min_cell_jacobian,
+                static_cast<long long>(r.folded_cells));
   return s + buf;
 }
 
@@ -155,6 +163,7 @@ void register_run(CLI::App& app) {
     out.keep_on_failure();
     StepOptions so;
     so.link_violation = !o->no_link_check;
+    so.cell_jacobian = !o->no_link_check;
     const bool progress = want_progress();
     float worst = 0;
     try {

@@ -1,29 +1,23 @@
-// Export hook of `hpcm run` (issue 4): the displacement field (mm, NIfTI + NRRD), the deformed
-// CT on the input grid (input's format) and the tissue label map with a Slicer colour table.
-// Every --export-every N frames and at the end of the run. See docs/slicer.md.
+// Export hook of `hpcm run`: the displacement field (mm, NIfTI + NRRD) and the tissue label map
+// on the input's grid coarsened by --downsample, and the deformed CT on the input's grid, all in
+// the input file's own index order and geometry. Every --export-every N frames and at the end.
+// See docs/io.md and docs/slicer.md.
 #include <cstdio>
 #include <filesystem>
 
 #include "run_options.hpp"
-#if defined(HPCM_WITH_ITK)
-#include "hpcm/io.hpp"
-#endif
 
 namespace hpcm::cli {
 
 void add_export_options(CLI::App* cmd, RunOptions& o) {
   cmd->add_option("--export", o.export_dir,
-                  "Folder for 3D Slicer exports: displacement field (mm), deformed CT, tissue labels (needs ITK)");
+                  "Folder for exports on the input's grid: displacement field (mm), deformed CT, tissue labels (needs ITK)");
   cmd->add_option("--export-every", o.export_every, "Also export every N frames (0: only at the end)");
 }
 
 void ExportSession::write_frame(const std::string& tag, bool final_export) {
 #if defined(HPCM_WITH_ITK)
-  const std::string dir = o_.export_dir + "/";
-  const std::vector<Vec3>& pos = sim_.state().pos;
-  io::write_displacement_field(sim_.model(), pos, dir + "displacement_" + tag + ".nii.gz");
-  if (final_export) io::write_displacement_field(sim_.model(), pos, dir + "displacement_" + tag + ".nrrd");
-  io::write_deformed_volume(original_, sim_.model(), pos, dir + "deformed_" + tag + ext_);
+  io::export_frame(input_, sim_.model(), sim_.state().pos, o_.export_dir, tag, final_export);
 #endif
 }
 
@@ -34,12 +28,8 @@ ExportSession::ExportSession(const RunOptions& o, Simulation& sim) : o_(o), sim_
   if (o_.export_dir.empty()) return;
 #if defined(HPCM_WITH_ITK)
   make_output_dir(o_.export_dir, "--export");
-  // The input grid (cropped to --roi when given, never down-sampled).
-  VolumeSource full = o_.source;
-  full.downsample = 1;
-  original_ = load_volume(full);
-  ext_ = o_.source.input.empty() ? ".nii.gz" : io::volume_extension_for(o_.source.input);
-  io::write_label_map(sim_.model(), o_.export_dir + "/labels.nii.gz");
+  input_ = load_input(o_.source);  // the same input the lattice came from, with its own grid
+  io::write_label_map(input_, sim_.model(), o_.export_dir + "/labels.nii.gz");
 #else
   throw Error("--export " + o_.export_dir + ": hpcm was built without ITK, exports are not available");
 #endif
@@ -60,7 +50,7 @@ void ExportSession::finish() {
   if (o_.export_dir.empty()) return;
   write_frame("final", true);
   std::printf("exported to %s: displacement_final.nii.gz/.nrrd (mm), deformed_final%s, labels.nii.gz + labels.ctbl\n",
-              (o_.export_shown.empty() ? o_.export_dir : o_.export_shown).c_str(), ext_.c_str());
+              (o_.export_shown.empty() ? o_.export_dir : o_.export_shown).c_str(), io::deformed_extension(input_).c_str());
 #endif
 }
 

@@ -36,8 +36,9 @@ class ExportSession {
   void write_frame(const std::string& tag, bool final_export);
   const RunOptions& o_;
   Simulation& sim_;
-  Volume original_;     ///< the input on its own grid (for the deformed CT)
-  std::string ext_;     ///< the input's file extension (deformed CT format)
+#if defined(HPCM_WITH_ITK)
+  io::Input input_;     ///< the input on its own grid, and how the lattice lies on it
+#endif
 };
 
 std::string frames_csv_header();

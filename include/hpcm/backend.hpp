@@ -1,33 +1,17 @@
 #pragma once
-// The backend seam: the primitive stages of one frame, implemented once on the CPU
-// (src/solver + src/dynamics) and once in CUDA (src/cuda). The frame pipeline
-// (simulation.hpp) is written once and calls these in SPEC §6 order for every backend.
+// The backend seam: the primitive stages of one frame, implemented once on the CPU (src/cpu)
+// and once in CUDA (src/cuda) from the shared rules of src/solver and src/dynamics. The frame
+// pipeline (simulation.hpp) is written once and calls these in SPEC §6 order for every
+// backend; backend_factory.hpp creates them.
 #include <array>
 #include <memory>
 #include <string>
 #include <vector>
 
 #include "hpcm/state.hpp"
+#include "hpcm/stats.hpp"
 
 namespace hpcm {
-
-struct PropagateStats {
-  int sweeps = 0;          ///< sweeps until nothing changed
-  bool converged = true;   ///< false if the sweep cap was hit
-  Index reached = 0;       ///< elements the wave moved (finite arrival time, not FIXED)
-};
-
-struct RelaxStats {
-  int sweeps = 0;              ///< sweeps run (early exit included)
-  float max_correction = 0;    ///< largest correction of the last sweep
-};
-
-/// Per-tissue speed reduction of one frame: speed = |X_end(t) - X_end(t-1)|.
-struct SpeedStats {
-  PerTissue sum{};        ///< sum of speeds per class
-  PerTissue max{};        ///< max speed per class
-  Index moved = 0;        ///< elements with speed > 0
-};
 
 /// Device-side figures for benchmarks (hpcm bench). `available` is false on the CPU backend.
 struct DeviceProbe {
@@ -65,6 +49,9 @@ class Backend {
   virtual PropagateStats propagate() = 0;
   /// Up to `sweeps` relaxation sweeps with early exit (SPEC §4).
   virtual RelaxStats relax(int sweeps) = 0;
+  /// The last step of every ChainMail stage: every link back in its box (and every element in
+  /// the boundary box) where something left it, FIXED elements untouched (docs/solver.md).
+  virtual RestoreStats restore_links() = 0;
   /// The independent-velocity layer (SPEC §5) + boundary clamp + frame-end snapshot.
   /// Fills `speeds` when non-null (only then are speeds reduced).
   virtual void velocity_layer(SpeedStats* speeds) = 0;
@@ -85,11 +72,5 @@ class Backend {
   virtual void download_positions(std::vector<Vec3>& pos) = 0;
   virtual Vec3 position(Index i) = 0;
 };
-
-/// Creates a backend. Cuda throws hpcm::Error("no CUDA device ...") when none is present, or
-/// when hpcm was built without the CUDA backend.
-std::unique_ptr<Backend> make_backend(BackendKind k);
-/// True when the CUDA backend is compiled in and a device is present; `why` explains if not.
-bool cuda_available(std::string* why = nullptr);
 
 }  // namespace hpcm

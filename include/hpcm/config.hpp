@@ -10,6 +10,9 @@ namespace hpcm::config {
 
 Params load_params(const std::string& path);
 Params parse_params(const std::string& toml_text, const std::string& source_name);
+/// Same, starting from `base` instead of the defaults: keys the text leaves out keep base's
+/// values (the Python API sets single parameters this way, with the file's validation).
+Params parse_params(const std::string& toml_text, const std::string& source_name, const Params& base);
 /// A complete, commented parameter file holding every default.
 std::string default_params_toml();
 std::string params_to_toml(const Params& p);

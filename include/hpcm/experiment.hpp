@@ -24,6 +24,13 @@ struct ConditionResult {
   bool finite = true;                     ///< no NaN/Inf in positions or velocities, ever
   float max_boundary_excess = 0;          ///< largest coordinate beyond [-m, N-1+m] (0 = within)
   float max_bone_velocity = 0;            ///< |V| max over bone elements at the end
+  // Integrity (SPEC §8.7), over every frame: protocol and settle frames.
+  float max_link_violation = 0;           ///< largest link violation after any ChainMail stage
+  float min_cell_jacobian = 1;            ///< smallest cell corner determinant at any frame end
+  Index max_folded_cells = 0;             ///< most folded cells at any frame end
+  // The tool: the largest offset the protocol asked for and the largest the tissue allowed.
+  float max_requested_offset = 0, max_achieved_offset = 0;
+  int first_limited_frame = -1;           ///< first frame the pull was limited (-1: never)
 };
 
 struct Check {

@@ -1,6 +1,7 @@
 #pragma once
 // Umbrella header of the hpcm library.
 #include "hpcm/backend.hpp"
+#include "hpcm/backend_factory.hpp"
 #include "hpcm/material.hpp"
 #include "hpcm/model.hpp"
 #include "hpcm/params.hpp"
@@ -8,6 +9,7 @@
 #include "hpcm/scenario.hpp"
 #include "hpcm/simulation.hpp"
 #include "hpcm/state.hpp"
+#include "hpcm/stats.hpp"
 #include "hpcm/tissue.hpp"
 #include "hpcm/types.hpp"
 #include "hpcm/volume.hpp"

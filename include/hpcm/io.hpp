@@ -1,7 +1,15 @@
 #pragma once
-// Medical-image IO on ITK (library hpcm::io, optional): NIfTI, NRRD, MetaImage, DICOM series.
-// Volumes are reoriented to LPS index order on read (SPEC §2).
+// Medical-image IO on ITK (library hpcm::io, optional): NIfTI, NRRD, MetaImage, DICOM series,
+// and the exports of a simulation on the input's own grid.
+//
+// Two index orders meet here. A file stores its voxels in its own index order (the first index
+// of a NIfTI with a RAS affine runs towards the patient's right); the simulation lattice always
+// runs in LPS index order (x: right->left, y: anterior->posterior, z: inferior->superior). Everything a
+// user gives or gets back (ROI boxes, exported volumes and fields) is in the file's order;
+// `Input` carries the mapping between the two from the reader to the writers.
+#include <array>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -27,12 +35,75 @@ struct ReadOptions {
   std::function<void(const std::string&)> warn;
 };
 
-/// Reads a volume file or a DICOM series directory; values in HU. Throws hpcm::Error with a
-/// message naming the path on any failure: one line, then (only when a library printed
-/// something while reading) that library output as indented detail lines. Rejected: non-finite
-/// voxels, spacing that is zero, negative or not finite, HU outside [-32768, 65535], and DICOM
-/// series whose slices are not one evenly spaced stack (docs/io.md).
+/// Reads a volume file or a DICOM series directory as stored: values in HU, in the file's own
+/// index order (first index fastest; for DICOM: column, row, slice sorted along the slice
+/// normal) with the file's geometry (ITK conventions: LPS physical space). Throws
+/// hpcm::Error with a message naming the path on any failure: one line, then (only when a
+/// library printed something while reading) that library output as indented detail lines.
+/// Rejected: non-finite voxels, spacing that is zero, negative or not finite, HU outside
+/// [-32768, 65535], and DICOM series whose slices are not one evenly spaced stack (docs/io.md).
+Volume read_volume_as_stored(const std::string& path, const ReadOptions& opt = {});
+/// The same volume reoriented to LPS index order (to_lps_order of the above).
 Volume read_volume(const std::string& path, const ReadOptions& opt = {});
+
+/// How the lattice's LPS index order lies on a grid stored in another index order: LPS axis p
+/// (0 = L, 1 = P, 2 = S) runs along stored axis `axis[p]`, backwards when `reversed[p]`.
+struct IndexOrder {
+  std::array<int, 3> axis{0, 1, 2};
+  std::array<bool, 3> reversed{false, false, false};
+  bool identity() const;
+  friend bool operator==(const IndexOrder&, const IndexOrder&) = default;
+};
+/// The LPS order of a grid with this direction matrix: each LPS axis takes the stored axis whose
+/// direction is closest to it (a permutation), reversed when that axis runs backwards.
+IndexOrder lps_order_of(const std::array<double, 9>& direction);
+
+/// A volume stored in any index order, permuted/flipped into LPS index order. Every voxel keeps
+/// its physical position: spacing, origin and direction follow (an axis-aligned scan gets the
+/// identity direction, an oblique one keeps its small rotation).
+Volume to_lps_order(const Volume& stored);
+
+/// A voxel grid (a volume's geometry without its values).
+struct Grid {
+  Int3 dims;
+  std::array<double, 3> spacing{1, 1, 1};
+  std::array<double, 3> origin{0, 0, 0};
+  std::array<double, 9> direction{1, 0, 0, 0, 1, 0, 0, 0, 1};
+  std::size_t size() const { return static_cast<std::size_t>(dims.x) * dims.y * dims.z; }
+};
+Grid grid_of(const Volume& v);
+
+/// Voxel box [lo, hi) in the stored (file) index order; hi exclusive.
+struct Box {
+  Int3 lo, hi;
+};
+
+struct InputOptions {
+  std::string series_uid;     ///< DICOM directories with several series
+  DicomDuplicates dicom_duplicates = DicomDuplicates::Error;  ///< see ReadOptions
+  bool dicom_skip_unreadable = false;                          ///< see ReadOptions
+  std::optional<Box> roi;     ///< crop, in the input file's own voxel indices
+  int downsample = 1;         ///< block mean of f x f x f voxels, in the file's index order
+};
+
+/// A simulation input and everything the exports need to come back to the input's grid.
+struct Input {
+  std::string source;   ///< path, or a description ("phantom 128x128x75")
+  Volume stored;        ///< the input as stored (cropped to the ROI): its own index order and geometry
+  Volume lattice;       ///< down-sampled, then in LPS index order: what build_model() takes
+  Grid lattice_grid;    ///< the lattice's grid in the stored index order: `stored` coarsened by f
+  IndexOrder order;     ///< how the lattice lies on `lattice_grid` (and on `stored`)
+  int downsample = 1;
+  Box roi;              ///< the ROI applied (the whole volume without --roi), stored indices
+  Int3 left_out{};      ///< stored voxels per axis beyond the last full block (not in the lattice)
+};
+
+/// Crops `stored` to the ROI (its own indices), block-averages by the factor in its own index
+/// order (complete blocks only; see downsample()) and reorients the result to LPS order.
+/// Throws hpcm::Error naming the setting ("roi", "downsample factor") and the valid range.
+Input prepare_input(Volume stored, const InputOptions& opt, const std::string& source);
+/// Reads `path` (read_volume_as_stored) and prepares it.
+Input load_input(const std::string& path, const InputOptions& opt = {});
 
 /// Checks that `path` can be written as a volume (supported extension, an existing writable
 /// folder, no other file's data in the way) without writing anything: for commands that must
@@ -58,19 +129,43 @@ bool is_supported_volume_extension(const std::string& path);
 /// anything else) ".nrrd" (DICOM export is not supported; NRRD keeps the full geometry).
 std::string volume_extension_for(const std::string& input);
 
-/// Writes a scalar volume; format from the extension (.nii, .nii.gz, .nrrd, .nhdr, .mha, .mhd).
-/// Atomic: written to a temporary file in the same folder, then renamed.
+/// Writes a scalar volume in its own index order and geometry; format from the extension
+/// (.nii, .nii.gz, .nrrd, .nhdr, .mha, .mhd). Atomic: written to a temporary file in the same
+/// folder, then renamed.
 void write_volume(const Volume& v, const std::string& path);
 
-// --- exports for 3D Slicer (SPEC §9, docs/slicer.md) ---
-/// Displacement field u = X - X0 in millimetres (physical LPS), on the simulated lattice's
-/// physical grid, as a 3-component float vector image (.nii, .nii.gz or .nrrd).
-void write_displacement_field(const Model& m, const std::vector<Vec3>& pos, const std::string& path);
-/// Deformed CT resampled onto the original input grid (inverse mapping; outside keeps air),
-/// written in the format given by the extension with the original geometry.
-void write_deformed_volume(const Volume& original, const Model& m, const std::vector<Vec3>& pos,
+// --- exports (docs/io.md, docs/slicer.md) ---
+// Each checks that `m` is the lattice of `in` (same dims and geometry) and throws otherwise.
+
+/// Forward displacement u = X - X0 of every element in millimetres (LPS components), on
+/// `in.lattice_grid` in the input's index order, as a 3-component float vector image (.nii,
+/// .nii.gz, .nrrd, .mha). NRRD files carry `displacement field type: modeling`.
+void write_displacement_field(const Input& in, const Model& m, const std::vector<Vec3>& pos, const std::string& path);
+/// The displacement in millimetres as written by write_displacement_field: 3 floats per voxel
+/// of `in.lattice_grid` (interleaved, first index fastest).
+std::vector<float> displacement_on_input_grid(const Input& in, const Model& m, const std::vector<Vec3>& pos);
+/// Tissue class label map (uint8: 0 air .. 3 bone) on `in.lattice_grid`, with a Slicer colour
+/// table (.ctbl) written beside it.
+void write_label_map(const Input& in, const Model& m, const std::string& path);
+/// Deformed CT on the grid of `in.stored` (the input cropped to the ROI, never down-sampled),
+/// by inverse mapping; voxels whose rest position lies outside the input are air.
+void write_deformed_volume(const Input& in, const Model& m, const std::vector<Vec3>& pos, const std::string& path);
+/// Deformed CT on the grid of `target` (any grid: its index order and geometry).
+void write_deformed_volume(const Volume& target, const Model& m, const std::vector<Vec3>& pos,
                            const std::string& path);
-/// Tissue class label map (uint8: 0 air .. 3 bone) with a Slicer colour table written beside it.
-void write_label_map(const Model& m, const std::string& path);
+
+/// The files one export writes into a folder (names as `hpcm run --export` writes them).
+struct ExportFiles {
+  std::string displacement_nifti;  ///< displacement_<tag>.nii.gz
+  std::string displacement_nrrd;   ///< displacement_<tag>.nrrd (empty unless requested)
+  std::string deformed;            ///< deformed_<tag><input's extension>
+};
+/// Writes the displacement field (NIfTI, and NRRD when `nrrd_field`) and the deformed CT for
+/// the positions `pos` into folder `dir`, tagged `tag` ("final", "0020", ...).
+ExportFiles export_frame(const Input& in, const Model& m, const std::vector<Vec3>& pos, const std::string& dir,
+                         const std::string& tag, bool nrrd_field);
+/// The extension deformed CTs of this input get (volume_extension_for its source; ".nii.gz"
+/// for inputs that are not files, e.g. the phantom).
+std::string deformed_extension(const Input& in);
 
 }  // namespace hpcm::io

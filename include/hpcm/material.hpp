@@ -19,8 +19,18 @@ struct LinkLimits {
   float min_d, max_d, shear, w;
 };
 
+/// Shear limit of a link of tolerance tau: tau (SPEC §3), capped where tau > 0.35 (air) so
+/// that a lattice whose links are all within their boxes never folds. At any cell corner the
+/// three edges form the columns of the cell's Jacobian; each column's axial component is at
+/// least 1 - 0.8 tau and its two shear components are at most this limit, so every column is
+/// diagonally dominant by at least 0.02 and the determinant is positive (docs/solver.md).
+HPCM_HD inline float shear_limit(float tau) {
+  const float cap = 0.5f * (0.98f - 0.8f * tau);
+  return tau < cap ? tau : cap;
+}
+
 HPCM_HD inline LinkLimits limits_from_tau(float tau, float w) {
-  return {1.0f - 0.8f * tau, 1.0f + tau, tau, w};
+  return {1.0f - 0.8f * tau, 1.0f + tau, shear_limit(tau), w};
 }
 
 struct MaterialTable {
@@ -35,6 +45,8 @@ struct MaterialTable {
   float w(float hu) const;
   /// Link between two elements: values at the pair's mean HU (symmetric).
   LinkLimits link(float hu_a, float hu_b) const;
+  /// Limits of a link whose pair has mean HU `hu`.
+  LinkLimits link_at(float hu) const { return limits_from_tau(tau(hu), w(hu)); }
   friend bool operator==(const MaterialTable&, const MaterialTable&) = default;
 };
 

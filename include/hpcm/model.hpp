@@ -1,6 +1,10 @@
 #pragma once
 // The static lattice Model (SPEC §2–3): one element per (down-sampled) voxel, its HU,
 // tissue class, tolerance, and the limits of the three links to its +x, +y, +z neighbours.
+// Link limits are stored compactly: a 16-bit index per link into a table of the material's
+// limits at the pair's mean HU, quantized to a grid of at most 65,535 levels over the
+// material's control-point range (1/16 HU for the default material; the material is constant
+// outside that range). Every component reads links through this one table.
 // The mutable State lives in state.hpp; solvers step one State into the next.
 #include <array>
 #include <vector>
@@ -18,8 +22,18 @@ struct Model {
   std::vector<float> hu;
   std::vector<std::uint8_t> tissue;    ///< Tissue per element
   std::vector<float> tau;              ///< element tolerance (relaxation weights 1/(tau+1e-4))
-  /// link[a][i]: limits of the link between i and its +a neighbour (unused at the + border).
-  std::array<std::vector<LinkLimits>, 3> link;
+  /// link_index[a][i]: entry of link_table for the link between i and its +a neighbour
+  /// (kNoLink at the + border).
+  std::array<std::vector<std::uint16_t>, 3> link_index;
+  std::vector<LinkLimits> link_table;
+  /// The tolerance each table entry was built from: link_table[k] is
+  /// limits_from_tau(link_tau[k], w) (a backend may keep the tolerance per link instead of the
+  /// index and rebuild the limits from it).
+  std::vector<float> link_tau;
+  static constexpr std::uint16_t kNoLink = 0;  ///< table entry of the missing links at the + border
+
+  /// Limits of the link between i and its +a neighbour.
+  const LinkLimits& link(int a, Index i) const { return link_table[link_index[a][static_cast<std::size_t>(i)]]; }
   std::array<Index, kTissueCount> class_count{};  ///< elements per class
 
   Index size() const { return static_cast<Index>(dims.x) * dims.y * dims.z; }

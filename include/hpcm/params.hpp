@@ -25,6 +25,10 @@ struct SolverParams {
   float relax_omega = 1.85f;       ///< over-relaxation of each step, [1, 1.95] (1 = Gauss-Seidel)
   AnchorMode anchors = AnchorMode::Bone;
   int max_propagation_sweeps = 100000;  ///< safety cap, [1, 10^7]
+  /// Bricks where nothing moves sleep (cost nothing) until a neighbour, the wave or the tool
+  /// wakes them; velocities below dynamics.sleep_speed are set to 0. false keeps every brick
+  /// awake and every velocity (the exact reference, slower).
+  bool sleep = true;
   void validate() const;
   friend bool operator==(const SolverParams&, const SolverParams&) = default;
 };
@@ -38,6 +42,9 @@ struct DynamicsParams {
   float s_min = 0.0f, s_max = 1.0f;          ///< response-scale clamp, 0 <= s_min <= s_max <= 1
   float dead_zone = 1e-3f;                   ///< [0, 1) lattice units
   float v_max = 0.5f;                        ///< (0, 10] lattice units per frame
+  /// [0, 0.01] lattice units per frame: a velocity below it is set to 0 (the element comes to
+  /// rest and its brick can sleep); ignored when solver.sleep is false.
+  float sleep_speed = 1e-5f;
   float beta = 1.0f;                         ///< global inertia gain, [0, 2]
   PerTissue rho{1.0f, 1.0f, 1.0f, 1.0f};     ///< per-class position gain, [0, 2]
   float margin = 2.0f;                       ///< boundary margin, [0, 64] lattice units

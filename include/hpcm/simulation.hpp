@@ -5,17 +5,23 @@
 #include <memory>
 #include <vector>
 
-#include "hpcm/backend.hpp"
+#include "hpcm/backend_factory.hpp"
 
 namespace hpcm {
 
 struct FrameReport {
   int frame = 0;
   bool deform = false;          ///< deformation stage (a grab is held) or idle stage
-  float grab_offset = 0;        ///< |tool offset| in lattice units (0 when nothing is held)
+  float grab_offset = 0;        ///< |tool offset| achieved, lattice units (0 when nothing is held)
+  float requested_offset = 0;   ///< |tool offset| the input asked for
+  bool tool_limited = false;    ///< the tissue could not follow the tool this far: the pull was limited
+  Index restored_links = 0;     ///< links the restoration found outside their box (then restored)
+  float restore_violation = 0;  ///< the largest of those violations before restoring
   Index moved_elements = 0;     ///< elements whose position changed this frame
   Index active_bricks = 0;
   float max_link_violation = -1;  ///< after the ChainMail stage; -1 when not measured
+  float min_cell_jacobian = -1;   ///< smallest cell corner Jacobian determinant at frame end; -1 when not measured
+  Index folded_cells = -1;        ///< cells with a corner determinant <= 0 at frame end; -1 when not measured
   int propagate_sweeps = 0, relax_sweeps = 0;
   bool propagate_converged = true;
   double chainmail_ms = 0, inertia_ms = 0, snapshot_ms = 0, sim_total_ms = 0;
@@ -25,6 +31,7 @@ struct FrameReport {
 struct StepOptions {
   bool speeds = true;               ///< reduce per-tissue speeds (costs a little)
   bool link_violation = false;      ///< measure max link violation over all links (O(N))
+  bool cell_jacobian = false;       ///< measure the smallest cell Jacobian determinant at frame end (O(N))
 };
 
 class Simulation {
@@ -44,12 +51,20 @@ class Simulation {
   /// Grabs every element within `radius` (lattice units, rest coordinates) of `centre`;
   /// radius <= 0 uses params.solver.grab_radius. Replaces any current grab.
   void grab(Index centre, float radius = 0);
-  /// Moves the tool: grabbed elements go rigidly to (position at grab time + offset).
+  /// Moves the tool: grabbed elements go rigidly to (position at grab time + offset). An
+  /// offset the tissue cannot follow (the links between the tool and the anchors or the
+  /// boundary cannot stretch that far) is limited to the closest one it can: tool_offset()
+  /// then differs from requested_offset() and tool_limited() is true.
   void move_tool(Vec3 offset);
   void release();
   bool grabbing() const { return !grabbed_.empty(); }
   Index grab_centre() const { return grab_centre_; }
   Vec3 tool_offset() const { return tool_offset_; }
+  Vec3 requested_offset() const { return requested_offset_; }
+  bool tool_limited() const { return !(tool_offset_ == requested_offset_); }
+  /// Feasible tool offsets of the current grab, per axis [lo, hi] (lattice units).
+  Vec3 tool_limit_lo() const { return limit_lo_; }
+  Vec3 tool_limit_hi() const { return limit_hi_; }
   const std::vector<Index>& grabbed() const { return grabbed_; }
 
   /// One frame of the pipeline.
@@ -66,6 +81,7 @@ class Simulation {
  private:
   void push_fixed();
   void compute_anchors();
+  void compute_tool_limit();
   Model model_;
   Params params_;
   std::unique_ptr<Backend> backend_;
@@ -75,7 +91,9 @@ class Simulation {
   std::vector<Index> grabbed_;
   std::vector<Vec3> grab_origin_;
   Index grab_centre_ = -1;
-  Vec3 tool_offset_{};
+  Vec3 tool_offset_{}, requested_offset_{};
+  Vec3 limit_lo_{}, limit_hi_{};
+  std::vector<std::uint8_t> anchored_;  ///< per element: anchored at rest (grabbed elements excluded)
   int frame_ = 0;
 };
 

@@ -26,4 +26,15 @@ struct State {
 /// Largest violation of any link box over the whole lattice (0 when consistent).
 float max_link_violation(const Model& m, const std::vector<Vec3>& pos);
 
+/// Fold check of a deformed lattice. Every cell (8 neighbouring elements) is a trilinear
+/// hexahedron; at each of its 8 corners the determinant of the three edge vectors leaving the
+/// corner (oriented along +x, +y, +z) is the cell's Jacobian there (1 at rest). A cell with a
+/// corner determinant <= 0 is folded.
+struct CellJacobianStats {
+  float min_det = 1;   ///< smallest corner determinant over all cells (1 for a lattice without cells)
+  Index folded = 0;    ///< cells with a corner determinant <= 0
+  Index cells = 0;     ///< cells checked
+};
+CellJacobianStats cell_jacobian(const Model& m, const std::vector<Vec3>& pos);
+
 }  // namespace hpcm

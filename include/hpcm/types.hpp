@@ -22,6 +22,7 @@ struct Error : std::runtime_error {
 
 struct Int3 {
   int x = 0, y = 0, z = 0;
+  HPCM_HD int operator[](int a) const { return a == 0 ? x : (a == 1 ? y : z); }
   friend bool operator==(const Int3&, const Int3&) = default;
 };
 

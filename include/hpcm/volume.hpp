@@ -25,8 +25,11 @@ struct Volume {
 /// Throws hpcm::Error if dims are not positive, values not finite, spacing not positive.
 void validate_volume(const Volume& v, const std::string& what);
 
-/// Integer down-sampling by block mean of HU. Blocks at the upper border that do not fit
-/// completely are averaged over the voxels they have. factor must be in [1, min(dims)].
+/// Integer down-sampling by block mean of HU over complete f x f x f blocks, in the volume's own
+/// index order: dims become floor(dims / f), spacing f * spacing, and element (0,0,0) sits at the
+/// centre of the first block (input index (f-1)/2), so every element is at the centre of the
+/// voxels it averages. The last dims % f voxels of an axis (fewer than f) belong to no block and
+/// are left out. factor must be in [1, min(dims)].
 Volume downsample(const Volume& v, int factor);
 
 /// Crop to voxel box [lo, hi) (hi exclusive); geometry follows (origin shifts).

@@ -238,9 +238,13 @@ std::string write_params(const Params& p, const std::string& header) {
 }  // namespace
 
 Params parse_params(const std::string& toml_text, const std::string& source_name) {
+  return parse_params(toml_text, source_name, Params{});
+}
+
+Params parse_params(const std::string& toml_text, const std::string& source_name, const Params& base) {
   const Ctx ctx{source_name};
   const toml::table root_tbl = detail::parse_toml(toml_text, ctx);
-  Params p;
+  Params p = base;
   Section root(ctx, root_tbl, "");
   read_tissue(root, p);
   read_material(root, p);

@@ -53,9 +53,6 @@ float MaterialTable::tau(float hu) const {
 float MaterialTable::w(float hu) const {
   return interpolate(points, hu, [](const MaterialPoint& p) { return p.w; });
 }
-LinkLimits MaterialTable::link(float hu_a, float hu_b) const {
-  const float mean = 0.5f * (hu_a + hu_b);
-  return limits_from_tau(tau(mean), w(mean));
-}
+LinkLimits MaterialTable::link(float hu_a, float hu_b) const { return link_at(0.5f * (hu_a + hu_b)); }
 
 }  // namespace hpcm

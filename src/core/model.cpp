@@ -1,14 +1,42 @@
 #include "hpcm/model.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <limits>
 
 namespace hpcm {
+
+namespace {
+
+/// The grid on which links are tabulated: pair-mean HU clamped to the material's control-point
+/// range (the material is constant outside it), in steps of at least 1/16 HU and at most
+/// 65,535 levels. Entry 0 is Model::kNoLink.
+struct LinkGrid {
+  float lo, hi;
+  double step;
+  int levels;
+  explicit LinkGrid(const MaterialTable& mat) {
+    lo = mat.points.front().hu;
+    hi = mat.points.back().hu;
+    step = std::max(1.0 / 16.0, (static_cast<double>(hi) - lo) / 65533.0);
+    levels = static_cast<int>(std::floor((static_cast<double>(hi) - lo) / step)) + 2;  // + the level at hi
+  }
+  std::uint16_t key(float mean_hu) const {
+    if (!(mean_hu > lo)) return 1;
+    if (mean_hu >= hi) return static_cast<std::uint16_t>(levels);
+    const long k = std::lround((static_cast<double>(mean_hu) - lo) / step);
+    return static_cast<std::uint16_t>(1 + std::min<long>(k, levels - 1));
+  }
+  float hu(int key) const { return key == levels ? hi : static_cast<float>(lo + (key - 1) * step); }
+};
+
+}  // namespace
 
 void rebuild_materials(Model& m, const Params& p) {
   const Index n = m.size();
   m.tissue.resize(static_cast<std::size_t>(n));
   m.tau.resize(static_cast<std::size_t>(n));
-  for (auto& l : m.link) l.resize(static_cast<std::size_t>(n));
+  for (auto& l : m.link_index) l.resize(static_cast<std::size_t>(n));
   std::array<Index, kTissueCount> counts{};
   const int nx = m.dims.x, ny = m.dims.y, nz = m.dims.z;
 #pragma omp parallel for schedule(static)
@@ -18,6 +46,18 @@ void rebuild_materials(Model& m, const Params& p) {
   }
   for (Index i = 0; i < n; ++i) ++counts[m.tissue[i]];
   m.class_count = counts;
+  const LinkGrid grid(p.material);
+  m.link_table.resize(static_cast<std::size_t>(grid.levels) + 1);
+  m.link_tau.resize(m.link_table.size());
+  m.link_tau[Model::kNoLink] = 0.0f;
+  m.link_table[Model::kNoLink] = limits_from_tau(0.0f, 1.0f);  // {1, 1, 0, 1}: never read
+#pragma omp parallel for schedule(static)
+  for (int k = 1; k <= grid.levels; ++k) {
+    const float hu = grid.hu(k);
+    const float tau = p.material.tau(hu);
+    m.link_tau[static_cast<std::size_t>(k)] = tau;
+    m.link_table[static_cast<std::size_t>(k)] = limits_from_tau(tau, p.material.w(hu));
+  }
   const Index stride[3] = {1, nx, static_cast<Index>(nx) * ny};
 #pragma omp parallel for schedule(static)
   for (int z = 0; z < nz; ++z)
@@ -26,12 +66,8 @@ void rebuild_materials(Model& m, const Params& p) {
         const Index i = m.index(x, y, z);
         const int c[3] = {x, y, z};
         const int d[3] = {nx, ny, nz};
-        for (int a = 0; a < 3; ++a) {
-          if (c[a] + 1 < d[a])
-            m.link[a][i] = p.material.link(m.hu[i], m.hu[i + stride[a]]);
-          else
-            m.link[a][i] = LinkLimits{1.0f, 1.0f, 0.0f, 1.0f};  // no link at the + border
-        }
+        for (int a = 0; a < 3; ++a)
+          m.link_index[a][i] = c[a] + 1 < d[a] ? grid.key(0.5f * (m.hu[i] + m.hu[i + stride[a]])) : Model::kNoLink;
       }
 }
 

@@ -80,6 +80,7 @@ void DynamicsParams::validate() const {
   }
   check_range("dynamics.dead_zone", dead_zone, 0.0f, 0.999f);
   check_range("dynamics.v_max", v_max, 0.0f, 10.0f, true);
+  check_range("dynamics.sleep_speed", sleep_speed, 0.0f, 0.01f);
   check_range("dynamics.beta", beta, 0.0f, 2.0f);
   check_per_tissue("dynamics.rho", rho, 0.0f, 2.0f);
   check_range("dynamics.margin", margin, 0.0f, 64.0f);

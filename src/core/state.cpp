@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <limits>
 
-#include "solver/link_box.hpp"
+#include "core/link_box.hpp"
 
 namespace hpcm {
 
@@ -30,9 +30,45 @@ float max_link_violation(const Model& m, const std::vector<Vec3>& pos) {
         const int c[3] = {x, y, z};
         const int d[3] = {nx, ny, nz};
         for (int a = 0; a < 3; ++a)
-          if (c[a] + 1 < d[a]) worst = std::max(worst, solver::link_violation(pos[i], pos[i + stride[a]], m.link[a][i], a));
+          if (c[a] + 1 < d[a]) worst = std::max(worst, link_violation(pos[i], pos[i + stride[a]], m.link(a, i), a));
       }
   return worst;
+}
+
+CellJacobianStats cell_jacobian(const Model& m, const std::vector<Vec3>& pos) {
+  CellJacobianStats st;
+  const int nx = m.dims.x, ny = m.dims.y, nz = m.dims.z;
+  if (nx < 2 || ny < 2 || nz < 2) return st;
+  const Index sy = nx, sz = static_cast<Index>(nx) * ny;
+  double min_det = 1.0;
+  Index folded = 0;
+#pragma omp parallel for schedule(static) reduction(min : min_det) reduction(+ : folded)
+  for (int z = 0; z < nz - 1; ++z)
+    for (int y = 0; y < ny - 1; ++y)
+      for (int x = 0; x < nx - 1; ++x) {
+        const Index base = m.index(x, y, z);
+        double cell_min = 1e30;
+        for (int k = 0; k < 2; ++k)
+          for (int j = 0; j < 2; ++j)
+            for (int i = 0; i < 2; ++i) {
+              const Index c = base + i + j * sy + k * sz;
+              // Edges to the corner's neighbours inside the cell, oriented along +x, +y, +z.
+              const Vec3 p = pos[c];
+              const Vec3 ex = i ? p - pos[c - 1] : pos[c + 1] - p;
+              const Vec3 ey = j ? p - pos[c - sy] : pos[c + sy] - p;
+              const Vec3 ez = k ? p - pos[c - sz] : pos[c + sz] - p;
+              const double det = double(ex.x) * (double(ey.y) * ez.z - double(ey.z) * ez.y) -
+                                 double(ex.y) * (double(ey.x) * ez.z - double(ey.z) * ez.x) +
+                                 double(ex.z) * (double(ey.x) * ez.y - double(ey.y) * ez.x);
+              cell_min = std::min(cell_min, det);
+            }
+        min_det = std::min(min_det, cell_min);
+        if (cell_min <= 0.0) ++folded;
+      }
+  st.min_det = static_cast<float>(min_det);
+  st.folded = folded;
+  st.cells = static_cast<Index>(nx - 1) * (ny - 1) * (nz - 1);
+  return st;
 }
 
 }  // namespace hpcm

@@ -33,27 +33,26 @@ Volume downsample(const Volume& v, int f) {
     throw Error("downsample factor " + std::to_string(f) + " is out of range [1, " + std::to_string(mind) +
                 "] (the smallest volume dimension)");
   if (f == 1) return v;
+  // Complete blocks only: on a regular grid every element sits at the centre of its block, and
+  // a partial block at the upper border could not (its voxels' centre is off the grid).
   Volume o;
-  o.dims = {(v.dims.x + f - 1) / f, (v.dims.y + f - 1) / f, (v.dims.z + f - 1) / f};
+  o.dims = {v.dims.x / f, v.dims.y / f, v.dims.z / f};
   o.spacing = {v.spacing[0] * f, v.spacing[1] * f, v.spacing[2] * f};
   o.direction = v.direction;
   // The new voxel (0,0,0) is the centre of the first block: index (f-1)/2 of the input.
   const double c = (f - 1) / 2.0;
   o.origin = v.index_to_physical(c, c, c);
   o.hu.assign(o.size(), 0.0f);
+  const double count = double(f) * f * f;
 #pragma omp parallel for schedule(static)
   for (int z = 0; z < o.dims.z; ++z)
     for (int y = 0; y < o.dims.y; ++y)
       for (int x = 0; x < o.dims.x; ++x) {
         double sum = 0;
-        int n = 0;
-        for (int k = z * f; k < std::min(v.dims.z, z * f + f); ++k)
-          for (int j = y * f; j < std::min(v.dims.y, y * f + f); ++j)
-            for (int i = x * f; i < std::min(v.dims.x, x * f + f); ++i) {
-              sum += v.at(i, j, k);
-              ++n;
-            }
-        o.hu[static_cast<std::size_t>(o.index(x, y, z))] = static_cast<float>(sum / n);
+        for (int k = z * f; k < z * f + f; ++k)
+          for (int j = y * f; j < y * f + f; ++j)
+            for (int i = x * f; i < x * f + f; ++i) sum += v.at(i, j, k);
+        o.hu[static_cast<std::size_t>(o.index(x, y, z))] = static_cast<float>(sum / count);
       }
   return o;
 }

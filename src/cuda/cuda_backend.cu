@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "cuda/cuda_backend.hpp"
 #include "cuda/device_backend.hpp"
 
 namespace hpcm {
@@ -83,7 +84,7 @@ __global__ void __launch_bounds__(kPropThreads) k_propagate(PropArgs a) {
 }
 __global__ void k_count_touched(Lattice L, PropCtl* ctl) {
   const long long b = global_id();
-  if (b < L.nbricks) count_touched_thread(L, b, ctl);
+  if (b < L.grid.count) count_touched_thread(L, b, ctl);
 }
 __global__ void k_full_reset(Lattice L) {
   for (long long i = global_id(); i < L.n; i += static_cast<long long>(gridDim.x) * blockDim.x) full_reset_element(L, i);
@@ -92,14 +93,16 @@ __global__ void k_relax_begin(RelaxArgs a) {
   const int n = a.sweeps > 1 ? a.sweeps : 1;
   for (int j = static_cast<int>(threadIdx.x); j < n; j += static_cast<int>(blockDim.x)) relax_begin_thread(a, j);
 }
-__global__ void k_relax_list(RelaxArgs a, int s) { relax_list_thread(a, s, global_id()); }
-__global__ void __launch_bounds__(kBrickThreads) k_relax_colour(RelaxArgs a, int s, int colour) {
+__global__ void k_relax_start(RelaxArgs a) { relax_start_thread(a, global_id()); }
+__global__ void k_relax_list(RelaxArgs a, int p) { relax_list_thread(a, p, global_id()); }
+__global__ void k_relax_finish(RelaxArgs a) { relax_finish_thread(a, global_id()); }
+__global__ void __launch_bounds__(kBrickThreads) k_relax_colour(RelaxArgs a, int p) {
   __shared__ RelaxShared sh;
   DevBlock b;
-  relax_colour_block(a, s, colour, sh, b);
+  relax_colour_block(a, p, sh, b);
 }
-__global__ void k_relax_end(RelaxArgs a, int s) {
-  relax_end_thread(a, s, global_id(), static_cast<long long>(gridDim.x) * blockDim.x);
+__global__ void k_relax_end(RelaxArgs a, int p) {
+  if (global_id() == 0) relax_end_thread(a, p);
 }
 __global__ void __launch_bounds__(kBrickThreads) k_layer(LayerArgs a) {
   __shared__ LayerShared sh;
@@ -193,7 +196,7 @@ class GpuExec {
     HPCM_LAUNCHED("k_apply_targets");
   }
   void reset_wave(const Lattice& L) {
-    k_reset_wave<<<static_cast<unsigned>(L.nbricks), kBrickThreads, 0, stream_>>>(L);
+    k_reset_wave<<<static_cast<unsigned>(L.grid.count), kBrickThreads, 0, stream_>>>(L);
     HPCM_LAUNCHED("k_reset_wave");
   }
   void propagate(const PropArgs& a) {
@@ -201,7 +204,7 @@ class GpuExec {
     HPCM_LAUNCHED("k_propagate");
   }
   void count_touched(const Lattice& L, PropCtl* ctl) {
-    k_count_touched<<<grid_for(L.nbricks, 256), 256, 0, stream_>>>(L, ctl);
+    k_count_touched<<<grid_for(L.grid.count, 256), 256, 0, stream_>>>(L, ctl);
     HPCM_LAUNCHED("k_count_touched");
   }
   void full_reset(const Lattice& L) {
@@ -231,7 +234,7 @@ class GpuExec {
     HPCM_CUDA(cudaGraphLaunch(it->second, stream_));
   }
   void layer(const LayerArgs& a) {
-    k_layer<<<static_cast<unsigned>(a.L.nbricks), kBrickThreads, 0, stream_>>>(a);
+    k_layer<<<static_cast<unsigned>(a.L.grid.count), kBrickThreads, 0, stream_>>>(a);
     HPCM_LAUNCHED("k_layer");
   }
   void speed_sum(const LayerArgs& a) {
@@ -295,22 +298,23 @@ class GpuExec {
     return v.size() % 2 ? v[h] : 0.5 * (v[h - 1] + v[h]);
   }
   void enqueue_relax(const RelaxArgs& a) {
-    const long long nb = a.L.nbricks;
-    const unsigned list_grid = grid_for(nb, 256);
+    const long long nb = a.L.grid.count;
+    const unsigned brick_grid = grid_for(nb, 256);
     const unsigned colour_grid = static_cast<unsigned>(std::min<long long>(nb, 8LL * sms_));
-    const unsigned end_grid = static_cast<unsigned>(std::min<long long>(grid_for(nb, 256), 4LL * sms_));
     k_relax_begin<<<1, 256, 0, stream_>>>(a);
     HPCM_LAUNCHED("k_relax_begin");
-    for (int s = 0; s < a.sweeps; ++s) {
-      k_relax_list<<<list_grid, 256, 0, stream_>>>(a, s);
+    k_relax_start<<<brick_grid, 256, 0, stream_>>>(a);
+    HPCM_LAUNCHED("k_relax_start");
+    for (int p = 0; p < 2 * a.sweeps; ++p) {
+      k_relax_list<<<brick_grid, 256, 0, stream_>>>(a, p);
       HPCM_LAUNCHED("k_relax_list");
-      for (int colour = 0; colour < 2; ++colour) {
-        k_relax_colour<<<colour_grid, kBrickThreads, 0, stream_>>>(a, s, colour);
-        HPCM_LAUNCHED("k_relax_colour");
-      }
-      k_relax_end<<<end_grid, 256, 0, stream_>>>(a, s);
+      k_relax_colour<<<colour_grid, kBrickThreads, 0, stream_>>>(a, p);
+      HPCM_LAUNCHED("k_relax_colour");
+      k_relax_end<<<1, 32, 0, stream_>>>(a, p);
       HPCM_LAUNCHED("k_relax_end");
     }
+    k_relax_finish<<<brick_grid, 256, 0, stream_>>>(a);
+    HPCM_LAUNCHED("k_relax_finish");
   }
 
   int dev_ = 0, sms_ = 1;

@@ -18,6 +18,8 @@
 
 #include "cuda/kernels.hpp"
 #include "hpcm/backend.hpp"
+#include "solver/link_restore.hpp"
+#include "solver/schedule.hpp"
 
 namespace hpcm::gpu {
 
@@ -27,25 +29,6 @@ struct Ctl {
   RelaxCtl relax;
   LayerCtl layer;
 };
-
-/// Compact links reproduce the CPU Model bit for bit when every link is
-/// limits_from_tau(tau, w(mean HU)) of the model's material; otherwise explicit limits are stored.
-inline bool compact_links_match(const Model& m, const MaterialW& mat) {
-  const Index sx[3] = {1, m.dims.x, static_cast<Index>(m.dims.x) * m.dims.y};
-  const int d[3] = {m.dims.x, m.dims.y, m.dims.z};
-  for (Index i = 0; i < m.size(); ++i) {
-    const Int3 c = m.coords(i);
-    const int ca[3] = {c.x, c.y, c.z};
-    for (int a = 0; a < 3; ++a) {
-      if (ca[a] + 1 >= d[a]) continue;
-      const LinkLimits& L = m.link[a][static_cast<std::size_t>(i)];
-      const float mean = 0.5f * (m.hu[static_cast<std::size_t>(i)] + m.hu[static_cast<std::size_t>(i + sx[a])]);
-      const LinkLimits r = limits_from_tau(L.shear, material_w(mat, mean));
-      if (std::memcmp(&r, &L, sizeof r) != 0) return false;
-    }
-  }
-  return true;
-}
 
 /// Largest propagation list capacities (entries): pend + 6 * list < 2^31 (int counters).
 inline constexpr std::size_t kMaxPendCap = std::numeric_limits<int>::max() / 2;
@@ -70,8 +53,6 @@ class DeviceBackend final : public Backend {
 
   BackendKind kind() const override { return BackendKind::Cuda; }
   X& exec() { return x_; }
-  /// True when links are rebuilt on the fly (62 bytes per element); false: explicit limits.
-  bool compact_links() const { return compact_; }
   std::size_t device_bytes() const { return held_; }
   /// Test hook: initial capacities of the propagation lists (pending pushes, one bucket) for the
   /// next load(); 0 = the defaults. Small values force the grow-and-rerun path.
@@ -84,6 +65,7 @@ class DeviceBackend final : public Backend {
 
   void load(const Model& m, const Params& p, const State& s) override {
     p.validate();
+    restorer_ready_ = false;
     const Index n = m.size();
     if (static_cast<Index>(s.pos.size()) != n || static_cast<Index>(s.vel.size()) != n ||
         static_cast<Index>(s.flags.size()) != n)
@@ -97,30 +79,17 @@ class DeviceBackend final : public Backend {
     m_ = &m;
     p_ = p;
     k_ = dynamics::make_constants(p.dynamics, m.dims);
+    if (!p.solver.sleep) k_.sleep_speed = 0.0f;
+    wall_ = solver::make_wall(m.dims, p.dynamics.margin);
     L_ = Lattice{};
     L_.nx = m.dims.x;
     L_.ny = m.dims.y;
     L_.nz = m.dims.z;
     L_.n = n;
-    L_.bs = p.solver.brick_size;
-    L_.nbx = (L_.nx + L_.bs - 1) / L_.bs;
-    L_.nby = (L_.ny + L_.bs - 1) / L_.bs;
-    L_.nbz = (L_.nz + L_.bs - 1) / L_.bs;
-    L_.nbricks = static_cast<long long>(L_.nbx) * L_.nby * L_.nbz;
+    L_.grid.init(m.dims, p.solver.brick_size);
 
-    // Material w(HU) for on-the-fly links.
-    const auto& pts = p.material.points;
-    compact_ = pts.size() <= static_cast<std::size_t>(kMaxMaterialPoints);
-    if (compact_) {
-      L_.mat.n = static_cast<int>(pts.size());
-      for (std::size_t k = 0; k < pts.size(); ++k) {
-        L_.mat.hu[k] = pts[k].hu;
-        L_.mat.w[k] = pts[k].w;
-      }
-      compact_ = compact_links_match(m, L_.mat);
-    }
 
-    const std::size_t N = static_cast<std::size_t>(n), NB = static_cast<std::size_t>(L_.nbricks);
+    const std::size_t N = static_cast<std::size_t>(n), NB = static_cast<std::size_t>(L_.grid.count);
     const std::size_t N4 = (N + 3) / 4 * 4;
     L_.pos = alloc<Vec3>(N, "positions");
     L_.pre = alloc<Vec3>(N, "pre-ChainMail snapshot");
@@ -129,17 +98,15 @@ class DeviceBackend final : public Backend {
     L_.flags = alloc<std::uint8_t>(N4, "flags");
     L_.tau = alloc<float>(N, "element tolerances");
     L_.tissue = alloc<std::uint8_t>(N, "tissue classes");
-    if (compact_) {
-      L_.hu = alloc<float>(N, "HU");
-      for (int a = 0; a < 3; ++a) L_.ltau[a] = alloc<float>(N, "link tolerances");
-    } else {
-      for (int a = 0; a < 3; ++a) L_.link[a] = alloc<LinkLimits>(N, "link limits");
-    }
+    for (int a = 0; a < 3; ++a) L_.link_index[a] = alloc<std::uint16_t>(N, "link indices");
+    L_.link_table = alloc<LinkLimits>(m.link_table.size(), "link table");
     L_.touched = alloc<std::uint8_t>(NB, "brick flags");
     L_.hot = alloc<std::uint8_t>(NB, "brick flags");
-    L_.changed = alloc<std::uint8_t>(NB, "brick flags");
+    relax_start_ = alloc<std::uint8_t>(NB, "brick flags");
+    for (auto& ph : relax_phase_) ph = alloc<std::uint8_t>(NB, "brick flags");
     L_.has_vel = alloc<std::uint8_t>(NB, "brick flags");
     L_.wave = alloc<std::uint8_t>(NB, "brick flags");
+    L_.unchecked = alloc<std::uint8_t>(NB, "brick flags");
     save_touched_ = alloc<std::uint8_t>(NB, "brick flags");
     save_hot_ = alloc<std::uint8_t>(NB, "brick flags");
     relax_list_ = alloc<int>(NB, "relaxation brick list");
@@ -159,15 +126,9 @@ class DeviceBackend final : public Backend {
     std::vector<float> buf(N);
     x_.upload(const_cast<float*>(L_.tau), m.tau.data(), N * sizeof(float));
     x_.upload(const_cast<std::uint8_t*>(L_.tissue), m.tissue.data(), N);
-    if (compact_) {
-      x_.upload(const_cast<float*>(L_.hu), m.hu.data(), N * sizeof(float));
-      for (int a = 0; a < 3; ++a) {
-        for (std::size_t i = 0; i < N; ++i) buf[i] = m.link[a][i].shear;
-        x_.upload(const_cast<float*>(L_.ltau[a]), buf.data(), N * sizeof(float));
-      }
-    } else {
-      for (int a = 0; a < 3; ++a) x_.upload(const_cast<LinkLimits*>(L_.link[a]), m.link[a].data(), N * sizeof(LinkLimits));
-    }
+    for (int a = 0; a < 3; ++a)
+      x_.upload(const_cast<std::uint16_t*>(L_.link_index[a]), m.link_index[a].data(), N * sizeof(std::uint16_t));
+    x_.upload(const_cast<LinkLimits*>(L_.link_table), m.link_table.data(), m.link_table.size() * sizeof(LinkLimits));
     x_.upload(L_.pos, s.pos.data(), N * sizeof(Vec3));
     x_.upload(L_.pre, s.pos.data(), N * sizeof(Vec3));  // invariant between frames: X- == X
     x_.upload(L_.vel, s.vel.data(), N * sizeof(Vec3));
@@ -184,23 +145,13 @@ class DeviceBackend final : public Backend {
     }
     x_.upload(L_.touched, touched.data(), NB);
     x_.upload(L_.hot, touched.data(), NB);
-    x_.zero(L_.changed, NB);
     x_.zero(L_.has_vel, NB);
     x_.zero(L_.wave, NB);
+    std::vector<std::uint8_t> all(NB, 1);
+    x_.upload(L_.unchecked, all.data(), NB);  // a loaded state is checked once
     x_.zero(ctl_, sizeof(Ctl));
 
-    // Bucket width: the smallest time penalty of any link (ChainMailCpu::init).
-    float dmin = std::numeric_limits<float>::infinity();
-    const int dims[3] = {m.dims.x, m.dims.y, m.dims.z};
-    for (int a = 0; a < 3; ++a) {
-      if (dims[a] < 2) continue;
-      for (Index i = 0; i < n; ++i) {
-        const Int3 c = m.coords(i);
-        const int ca[3] = {c.x, c.y, c.z};
-        if (ca[a] + 1 < dims[a]) dmin = std::min(dmin, m.link[a][static_cast<std::size_t>(i)].w);
-      }
-    }
-    delta_ = std::isfinite(dmin) ? dmin : 1.0f;
+    delta_ = solver::bucket_width(m);
     fixed_.clear();
     n_fixed_dev_ = 0;
     active_ = 0;
@@ -214,7 +165,13 @@ class DeviceBackend final : public Backend {
     const bool bricks_changed = p.solver.brick_size != p_.solver.brick_size;
     p_ = p;
     k_ = dynamics::make_constants(p.dynamics, m_->dims);
-    x_.invalidate();  // the relaxation graph holds the threshold
+    if (!p.solver.sleep) k_.sleep_speed = 0.0f;
+    wall_ = solver::make_wall(m_->dims, p.dynamics.margin);
+    x_.invalidate();  // the relaxation graph holds the threshold and the wall
+    {
+      std::vector<std::uint8_t> all(static_cast<std::size_t>(L_.grid.count), 1);
+      x_.upload(L_.unchecked, all.data(), all.size());  // a new margin may put elements outside the wall
+    }
     if (bricks_changed) {
       State s;
       download(s);
@@ -270,8 +227,8 @@ class DeviceBackend final : public Backend {
     FixedArgs fa = fixed_args();
     x_.apply_targets(fa);
     x_.reset_wave(L_);
-    x_.copy(save_touched_, L_.touched, static_cast<std::size_t>(L_.nbricks));
-    x_.copy(save_hot_, L_.hot, static_cast<std::size_t>(L_.nbricks));
+    x_.copy(save_touched_, L_.touched, static_cast<std::size_t>(L_.grid.count));
+    x_.copy(save_hot_, L_.hot, static_cast<std::size_t>(L_.grid.count));
     for (;;) {
       PropArgs a;
       a.L = L_;
@@ -287,6 +244,7 @@ class DeviceBackend final : public Backend {
       a.sp = sp_;
       a.list_cap = list_cap_;
       a.delta = static_cast<double>(delta_);
+      a.wall = wall_;
       a.max_sweeps = p_.solver.max_propagation_sweeps;
       a.ctl = &ctl_->prop;
       x_.propagate(a);
@@ -311,15 +269,61 @@ class DeviceBackend final : public Backend {
       list_cap_ = std::max(list_cap_, list_new);
       alloc_prop_lists();
       x_.full_reset(L_);
-      x_.zero(L_.wave, static_cast<std::size_t>(L_.nbricks));
-      x_.copy(L_.touched, save_touched_, static_cast<std::size_t>(L_.nbricks));
-      x_.copy(L_.hot, save_hot_, static_cast<std::size_t>(L_.nbricks));
+      x_.zero(L_.wave, static_cast<std::size_t>(L_.grid.count));
+      x_.copy(L_.touched, save_touched_, static_cast<std::size_t>(L_.grid.count));
+      x_.copy(L_.hot, save_hot_, static_cast<std::size_t>(L_.grid.count));
     }
     PropagateStats st;
     st.sweeps = host_ctl_->prop.sweeps;
     st.converged = host_ctl_->prop.converged != 0;
     st.reached = host_ctl_->prop.reached;
     active_ = std::max<Index>(active_, host_ctl_->prop.active);
+    return st;
+  }
+
+  /// The link restoration runs on a host copy with the host schedule (solver::LinkRestorer),
+  /// so it computes exactly the CPU backend's floats; it costs a download of the positions
+  /// and flags in frames where something moved. A device schedule is future work.
+  RestoreStats restore_links() override {
+    const std::size_t N = static_cast<std::size_t>(L_.n), NB = static_cast<std::size_t>(L_.grid.count);
+    host_unchecked_.resize(NB);
+    host_touched_.resize(NB);
+    x_.download(host_unchecked_.data(), L_.unchecked, NB);
+    x_.download(host_touched_.data(), L_.touched, NB);
+    x_.sync();
+    bool any = false;
+    for (std::size_t b = 0; b < NB; ++b) {
+      host_unchecked_[b] = static_cast<std::uint8_t>(host_unchecked_[b] | host_touched_[b]);
+      any = any || host_unchecked_[b];
+    }
+    if (!any) return {};
+    L_.grid.dilate_to_list(host_unchecked_, check_list_);
+    host_pos_.resize(N);
+    host_flags_.resize(N);
+    x_.download(host_pos_.data(), L_.pos, N * sizeof(Vec3));
+    x_.download(host_flags_.data(), L_.flags, N);
+    x_.sync();
+    if (!restorer_ready_) {
+      restorer_.init(*m_);
+      restorer_ready_ = true;
+    }
+    HostAccess access(host_pos_, host_flags_);
+    RestoreStats st;
+    seeds_.clear();
+    solver::find_violations(*m_, L_.grid, check_list_, access, wall_, seeds_, st);
+    std::vector<std::uint8_t> moved(NB, 0);
+    restorer_.restore(*m_, L_.grid, seeds_, access, wall_, moved, st);
+    if (st.moved > 0) {
+      x_.upload(L_.pos, host_pos_.data(), N * sizeof(Vec3));
+      for (std::size_t b = 0; b < NB; ++b) host_touched_[b] = static_cast<std::uint8_t>(host_touched_[b] | moved[b]);
+      x_.upload(L_.touched, host_touched_.data(), NB);
+      host_hot_.resize(NB);
+      x_.download(host_hot_.data(), L_.hot, NB);
+      x_.sync();
+      for (std::size_t b = 0; b < NB; ++b) host_hot_[b] = static_cast<std::uint8_t>(host_hot_[b] | moved[b]);
+      x_.upload(L_.hot, host_hot_.data(), NB);
+    }
+    x_.zero(L_.unchecked, NB);
     return st;
   }
 
@@ -330,9 +334,12 @@ class DeviceBackend final : public Backend {
     RelaxArgs a;
     a.L = L_;
     a.list = relax_list_;
+    a.start = relax_start_;
+    for (int r = 0; r < 3; ++r) a.phase[r] = relax_phase_[r];
     a.ctl = &ctl_->relax;
     a.threshold = p_.solver.relax_threshold;
     a.omega = p_.solver.relax_omega;
+    a.wall = wall_;
     a.sweeps = sweeps;
     x_.relax(a);
     // sweeps, active_max and last_max are contiguous at the end of RelaxCtl
@@ -523,14 +530,31 @@ class DeviceBackend final : public Backend {
   Params p_;
   dynamics::LayerConstants k_{};
   Lattice L_{};
-  bool compact_ = true;
   float delta_ = 1.0f;
+  // link restoration on the host (restore_links)
+  solver::LinkRestorer restorer_;
+  solver::Wall wall_;
+  bool restorer_ready_ = false;
+  std::vector<Vec3> host_pos_;
+  std::vector<std::uint8_t> host_flags_, host_unchecked_, host_touched_, host_hot_;
+  std::vector<Index> check_list_, seeds_;
+  /// The restoration's view of the host copy (linear order).
+  struct HostAccess final : solver::RestoreAccess {
+    HostAccess(std::vector<Vec3>& p, const std::vector<std::uint8_t>& f) : pos(p), flags(f) {}
+    Vec3 position(Index i) const override { return pos[static_cast<std::size_t>(i)]; }
+    void set_coordinate(Index i, int axis, float value) override { pos[static_cast<std::size_t>(i)][axis] = value; }
+    bool fixed(Index i) const override { return (flags[static_cast<std::size_t>(i)] & kFixed) != 0; }
+    std::vector<Vec3>& pos;
+    const std::vector<std::uint8_t>& flags;
+  };
   std::vector<void*> blocks_;
   std::size_t held_ = 0;
   Ctl* ctl_ = nullptr;
   Ctl* host_ctl_ = nullptr;
   std::uint8_t *save_touched_ = nullptr, *save_hot_ = nullptr;
   int* relax_list_ = nullptr;
+  std::uint8_t* relax_start_ = nullptr;
+  std::uint8_t* relax_phase_[3] = {nullptr, nullptr, nullptr};
   float *part_sum_ = nullptr, *part_max_ = nullptr;
   int* part_moved_ = nullptr;
   // propagation lists

@@ -62,8 +62,8 @@ class EmuExec {
     apply_targets_block(a, b);
   }
   void reset_wave(const Lattice& L) {
-    for (long long br = 0; br < L.nbricks; ++br) {
-      HostBlock b{kBrickT, static_cast<int>(br), static_cast<int>(L.nbricks)};
+    for (long long br = 0; br < L.grid.count; ++br) {
+      HostBlock b{kBrickT, static_cast<int>(br), static_cast<int>(L.grid.count)};
       reset_wave_block(L, br, b);
     }
   }
@@ -73,29 +73,29 @@ class EmuExec {
     propagate_block(a, sh, b);
   }
   void count_touched(const Lattice& L, PropCtl* ctl) {
-    for (long long br = 0; br < L.nbricks; ++br) count_touched_thread(L, br, ctl);
+    for (long long br = 0; br < L.grid.count; ++br) count_touched_thread(L, br, ctl);
   }
   void full_reset(const Lattice& L) {
     for (long long i = 0; i < L.n; ++i) full_reset_element(L, i);
   }
   void relax(const RelaxArgs& a) {
-    for (int j = 0; j < std::max(a.sweeps, 1); ++j) relax_begin_thread(a, j);
-    const long long nthreads = 5;  // grid-stride kernels: any thread count gives the same result
-    for (int s = 0; s < a.sweeps; ++s) {
-      for (long long br = 0; br < a.L.nbricks; ++br) relax_list_thread(a, s, br);
-      for (int colour = 0; colour < 2; ++colour)
-        for (int bid = 0; bid < blocks_; ++bid) {
-          RelaxShared sh{};
-          HostBlock b{kBrickT, bid, blocks_};
-          relax_colour_block(a, s, colour, sh, b);
-        }
-      for (long long g = 0; g < nthreads; ++g) relax_end_thread(a, s, g, nthreads);
+    for (int j = 0; j < std::max(2 * a.sweeps, 1); ++j) relax_begin_thread(a, j);
+    for (long long br = 0; br < a.L.grid.count; ++br) relax_start_thread(a, br);
+    for (int p = 0; p < 2 * a.sweeps; ++p) {
+      for (long long br = 0; br < a.L.grid.count; ++br) relax_list_thread(a, p, br);
+      for (int bid = 0; bid < blocks_; ++bid) {
+        RelaxShared sh{};
+        HostBlock b{kBrickT, bid, blocks_};
+        relax_colour_block(a, p, sh, b);
+      }
+      relax_end_thread(a, p);
     }
+    for (long long br = 0; br < a.L.grid.count; ++br) relax_finish_thread(a, br);
   }
   void layer(const LayerArgs& a) {
     auto sh = std::make_unique<LayerShared>();
-    for (long long br = 0; br < a.L.nbricks; ++br) {
-      HostBlock b{kBrickT, static_cast<int>(br), static_cast<int>(a.L.nbricks)};
+    for (long long br = 0; br < a.L.grid.count; ++br) {
+      HostBlock b{kBrickT, static_cast<int>(br), static_cast<int>(a.L.grid.count)};
       layer_block(a, br, *sh, b);
     }
   }

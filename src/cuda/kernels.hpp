@@ -11,11 +11,13 @@
 // The per-element rules are not repeated here: they come from solver/rules.hpp (propagation,
 // relaxation, deformation boxes) and dynamics/velocity_update.hpp (the velocity layer), which are
 // HPCM_HD and shared with the CPU backend. What is here is the schedule: buckets, brick lists,
-// red-black colouring, reductions, and the compact per-element memory layout.
+// red-black colouring, reductions, and the per-element memory layout.
 #include <cstdint>
 
 #include "dynamics/velocity_update.hpp"
 #include "hpcm/state.hpp"
+#include "solver/bricks.hpp"
+#include "solver/neighbours.hpp"
 #include "solver/rules.hpp"
 
 namespace hpcm::gpu {
@@ -29,7 +31,6 @@ inline constexpr std::uint8_t kFinalBit = 0x80;   ///< decided in the current wa
 inline constexpr std::uint8_t kListedBit = 0x40;  ///< in the current bucket's list
 inline constexpr std::uint8_t kInternalBits = kFinalBit | kListedBit;
 
-inline constexpr int kMaxMaterialPoints = 16;  ///< compact links: control points in kernel params
 inline constexpr int kMaxSweeps = 256;         ///< SolverParams::relax_sweeps upper bound
 inline constexpr int kPropThreads = 512;       ///< the single-block propagation kernel
 inline constexpr int kBrickThreads = 256;      ///< brick kernels (relaxation, velocity layer)
@@ -93,54 +94,31 @@ HPCM_HD inline float bits_float(unsigned u) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Lattice on the device: compact per-element layout
+// Lattice on the device
 // ---------------------------------------------------------------------------------------------
 
-/// The material's w(HU) control points (MaterialTable::w, reproduced operation by operation).
-struct MaterialW {
-  int n = 0;
-  float hu[kMaxMaterialPoints];
-  float w[kMaxMaterialPoints];
-};
-
-/// Same float operations as MaterialTable::w (src/core/material.cpp, interpolate()).
-HPCM_HD inline float material_w(const MaterialW& m, float hu) {
-  if (hu <= m.hu[0]) return m.w[0];
-  if (hu >= m.hu[m.n - 1]) return m.w[m.n - 1];
-  for (int k = 1; k < m.n; ++k)
-    if (hu <= m.hu[k]) {
-      const float u = (hu - m.hu[k - 1]) / (m.hu[k] - m.hu[k - 1]);
-      return m.w[k - 1] + u * (m.w[k] - m.w[k - 1]);
-    }
-  return m.w[m.n - 1];
-}
-
 /// Device pointers and geometry, passed by value to every kernel.
-/// Per element (compact links): pos, pre, vel 3 x 12 B, time 4, hu 4, tau 4, ltau 3 x 4,
-/// tissue 1, flags 1 = 62 bytes. Link limits are rebuilt on the fly from the link's tolerance
-/// (stored exactly as the CPU Model has it) and w from the pair's mean HU (MaterialW).
+/// Per element: pos, pre, vel 3 x 12 B, time 4, tau 4, link index 3 x 2, tissue 1, flags 1
+/// = 52 bytes, plus the Model's link table (at most 65,536 x 16 bytes).
 struct Lattice {
   int nx = 0, ny = 0, nz = 0;
   long long n = 0;
-  int bs = 8, nbx = 0, nby = 0, nbz = 0;
-  long long nbricks = 0;
+  solver::BrickGrid grid;  ///< brick geometry, shared with the CPU backend
   Vec3* pos = nullptr;   ///< X (X+ after ChainMail)
   Vec3* pre = nullptr;   ///< X- (pre-ChainMail snapshot; equal to X between frames)
   Vec3* vel = nullptr;   ///< V
   float* time = nullptr;
   std::uint8_t* flags = nullptr;  ///< ElementFlags | internal bits; 4-byte aligned, padded
-  const float* hu = nullptr;
   const float* tau = nullptr;     ///< element tolerance (relaxation weights)
   const std::uint8_t* tissue = nullptr;
-  const float* ltau[3] = {nullptr, nullptr, nullptr};        ///< compact links: tau at mean HU
-  const LinkLimits* link[3] = {nullptr, nullptr, nullptr};   ///< explicit links (fallback)
-  MaterialW mat;
+  const std::uint16_t* link_index[3] = {nullptr, nullptr, nullptr};  ///< Model::link_index
+  const LinkLimits* link_table = nullptr;                            ///< Model::link_table
   // per brick
   std::uint8_t* touched = nullptr;  ///< positions changed this frame (velocity layer must visit)
   std::uint8_t* hot = nullptr;      ///< relaxation must look at it (and its face neighbours)
-  std::uint8_t* changed = nullptr;  ///< relaxation scratch: changed in the current sweep
   std::uint8_t* has_vel = nullptr;  ///< carries velocity (velocity layer must visit)
   std::uint8_t* wave = nullptr;     ///< holds elements with a finite time of the last wave
+  std::uint8_t* unchecked = nullptr;  ///< positions changed since the last link check (restoration)
 
   HPCM_HD long long index(int x, int y, int z) const { return x + static_cast<long long>(nx) * (y + static_cast<long long>(ny) * z); }
   HPCM_HD void coords(long long i, int& x, int& y, int& z) const {
@@ -149,59 +127,31 @@ struct Lattice {
     y = static_cast<int>(r % ny);
     z = static_cast<int>(r / ny);
   }
-  HPCM_HD long long brick_of(int x, int y, int z) const {
-    return x / bs + static_cast<long long>(nbx) * (y / bs + static_cast<long long>(nby) * (z / bs));
-  }
-  HPCM_HD long long brick_of_index(long long i) const {
-    int x, y, z;
-    coords(i, x, y, z);
-    return brick_of(x, y, z);
-  }
-  HPCM_HD void brick_coords(long long b, int& bx, int& by, int& bz) const {
-    bx = static_cast<int>(b % nbx);
-    const long long r = b / nbx;
-    by = static_cast<int>(r % nby);
-    bz = static_cast<int>(r / nby);
-  }
-  /// Element range [lo, hi) of brick b (as BrickGrid::range).
+  HPCM_HD long long brick_of_index(long long i) const { return grid.brick_of_index(i); }
+  /// Element range [lo, hi) of brick b.
   HPCM_HD void brick_range(long long b, int lo[3], int hi[3]) const {
-    int bx, by, bz;
-    brick_coords(b, bx, by, bz);
-    lo[0] = bx * bs;
-    lo[1] = by * bs;
-    lo[2] = bz * bs;
-    hi[0] = lo[0] + bs < nx ? lo[0] + bs : nx;
-    hi[1] = lo[1] + bs < ny ? lo[1] + bs : ny;
-    hi[2] = lo[2] + bs < nz ? lo[2] + bs : nz;
+    Int3 l, h;
+    grid.range(b, l, h);
+    lo[0] = l.x, lo[1] = l.y, lo[2] = l.z;
+    hi[0] = h.x, hi[1] = h.y, hi[2] = h.z;
   }
   /// Limits of the link along axis a between element lo and its + neighbour hi.
-  HPCM_HD LinkLimits link_of(int a, long long lo, long long hi) const {
-    if (link[a]) return link[a][lo];
-    const float mean = 0.5f * (this->hu[lo] + this->hu[hi]);  // MaterialTable::link
-    return limits_from_tau(ltau[a][lo], material_w(mat, mean));
-  }
+  HPCM_HD LinkLimits link_of(int a, long long lo, long long) const { return link_table[link_index[a][lo]]; }
 };
 
-/// ChainMailCpu::gather on the device layout: same neighbours, same order (-x,+x,-y,+y,-z,+z).
+/// ChainMailCpu::gather on the device layout: the shared face-neighbour walk.
 HPCM_HD inline int gather(const Lattice& L, int x, int y, int z, long long i, solver::Neighbour* nb) {
-  const long long sy = L.nx, sz = static_cast<long long>(L.nx) * L.ny;
   int c = 0;
-  auto add = [&](long long n, int axis, int side, const LinkLimits& lim) {
+  solver::for_each_face_neighbour(L.nx, L.ny, L.nz, x, y, z, i, [&](long long n, int axis, int side, long long lo, long long hi) {
     nb[c].idx = n;
     nb[c].axis = axis;
     nb[c].side = side;
-    nb[c].L = lim;
+    nb[c].L = L.link_of(axis, lo, hi);
     nb[c].t = L.time[n];
     nb[c].tau = L.tau[n];
     nb[c].p = L.pos[n];
     ++c;
-  };
-  if (x > 0) add(i - 1, 0, +1, L.link_of(0, i - 1, i));
-  if (x + 1 < L.nx) add(i + 1, 0, -1, L.link_of(0, i, i + 1));
-  if (y > 0) add(i - sy, 1, +1, L.link_of(1, i - sy, i));
-  if (y + 1 < L.ny) add(i + sy, 1, -1, L.link_of(1, i, i + sy));
-  if (z > 0) add(i - sz, 2, +1, L.link_of(2, i - sz, i));
-  if (z + 1 < L.nz) add(i + sz, 2, -1, L.link_of(2, i, i + sz));
+  });
   return c;
 }
 
@@ -260,7 +210,7 @@ HPCM_HD void apply_targets_block(const FixedArgs& a, B& blk) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Propagation: the bucketed schedule of src/solver/propagate.cpp on one thread block
+// Propagation: the bucketed schedule of src/cpu/chainmail_propagate.cpp on one thread block
 // ---------------------------------------------------------------------------------------------
 
 struct PropCtl {
@@ -284,6 +234,7 @@ struct PropArgs {
   Vec3* sp = nullptr;
   int list_cap = 0;
   double delta = 1.0;   ///< bucket width (smallest link w), as ChainMailCpu
+  solver::Wall wall;    ///< boundary box of every clamp
   int max_sweeps = 0;
   PropCtl* ctl = nullptr;
 };
@@ -315,20 +266,13 @@ HPCM_HD inline void push_neighbours(const PropArgs& a, PropShared& sh, long long
   const Lattice& L = a.L;
   int x, y, z;
   L.coords(i, x, y, z);
-  const long long sy = L.nx, sz = static_cast<long long>(L.nx) * L.ny;
-  auto push = [&](long long n, float w) {
+  solver::for_each_face_neighbour(L.nx, L.ny, L.nz, x, y, z, i, [&](long long n, int axis, int, long long lo, long long hi) {
     if (L.flags[n] & (kFinalBit | kFixed)) return;
-    const float c = t + w;
+    const float c = t + L.link_of(axis, lo, hi).w;
     const unsigned long long b = bucket_of(c, a.delta);
     if (processed >= 0 && b <= static_cast<unsigned long long>(processed)) return;
     pend_put(a, sh, static_cast<int>(n), b);
-  };
-  if (x > 0) push(i - 1, L.link_of(0, i - 1, i).w);
-  if (x + 1 < L.nx) push(i + 1, L.link_of(0, i, i + 1).w);
-  if (y > 0) push(i - sy, L.link_of(1, i - sy, i).w);
-  if (y + 1 < L.ny) push(i + sy, L.link_of(1, i, i + sy).w);
-  if (z > 0) push(i - sz, L.link_of(2, i - sz, i).w);
-  if (z + 1 < L.nz) push(i + sz, L.link_of(2, i, i + sz).w);
+  });
 }
 
 /// The whole wave on one block: buckets in ascending order (smallest pending bucket by a block
@@ -346,20 +290,24 @@ HPCM_HD void propagate_block(const PropArgs& a, PropShared& sh, B& blk) {
       a.ctl->active = 0;
     }
   });
-  // FIXED elements: t = 0, final (before any push, as on the CPU).
+  // FIXED elements: t = 0, final (before any push, as on the CPU); the grabbed ones start the
+  // wave (anchors never move).
   blk.each([&](int tid) {
     for (int j = tid; j < a.nfixed; j += T) {
       const long long f = a.fixed[j];
       L.time[f] = 0.0f;
       L.flags[f] = static_cast<std::uint8_t>(L.flags[f] | kFinalBit);
       const long long b = L.brick_of_index(f);
-      L.touched[b] = 1;
-      L.hot[b] = 1;
       L.wave[b] = 1;
+      if (L.flags[f] & kGrabbed) {
+        L.touched[b] = 1;
+        L.hot[b] = 1;
+      }
     }
   });
   blk.each([&](int tid) {
-    for (int j = tid; j < a.nfixed; j += T) push_neighbours(a, sh, a.fixed[j], 0.0f, -1);
+    for (int j = tid; j < a.nfixed; j += T)
+      if (L.flags[a.fixed[j]] & kGrabbed) push_neighbours(a, sh, a.fixed[j], 0.0f, -1);
   });
   blk.each([&](int tid) {
     if (tid == 0) {
@@ -413,7 +361,7 @@ HPCM_HD void propagate_block(const PropArgs& a, PropShared& sh, B& blk) {
             L.coords(e, x, y, z);
             solver::Neighbour nb[6];
             const int c = gather(L, x, y, z, e, nb);
-            propagate_in_bucket(e, L.pre[e], nb, c, k, a.delta, a.st[j], a.sp[j]);
+            propagate_in_bucket(e, L.pre[e], nb, c, k, a.delta, a.wall, a.st[j], a.sp[j]);
             if (!(a.st[j] == L.time[e]) || !(a.sp[j] == L.pos[e])) sh.any = 1;
           }
         });
@@ -484,7 +432,7 @@ HPCM_HD void reset_wave_block(const Lattice& L, long long b, B& blk) {
   const int T = blk.threads();
   int lo[3], hi[3];
   L.brick_range(b, lo, hi);
-  const int bs = L.bs, per = bs * bs * bs;
+  const int bs = L.grid.size, per = bs * bs * bs;
   blk.each([&](int tid) {
     for (int q = tid; q < per; q += T) {
       const int x = lo[0] + q % bs, y = lo[1] + (q / bs) % bs, z = lo[2] + q / (bs * bs);
@@ -512,24 +460,34 @@ HPCM_HD inline void count_touched_thread(const Lattice& L, long long b, PropCtl*
 }
 
 // ---------------------------------------------------------------------------------------------
-// Relaxation: red-black Gauss-Seidel on a compacted list of active bricks (src/solver/relax.cpp)
+// Relaxation: red-black Gauss-Seidel on a compacted list of active bricks (src/cpu/chainmail_relax.cpp)
 // ---------------------------------------------------------------------------------------------
 
 struct RelaxCtl {
-  int count[kMaxSweeps];       ///< active (dilated hot) bricks of sweep s
-  unsigned maxcorr[kMaxSweeps];  ///< float bits of the largest correction of sweep s
-  int stop;                    ///< first sweep index that does not run (early exit)
+  int count[2 * kMaxSweeps];         ///< active bricks of phase p
+  unsigned maxcorr[2 * kMaxSweeps];  ///< float bits of the largest correction of phase p
+  int stop;                          ///< first phase that does not run (nothing can move any more)
   int sweeps;
   int active_max;
   float last_max;
 };
 
+/// The relaxation's schedule (the CPU's, src/cpu/relax.cpp, at brick granularity): phase p is
+/// colour p % 2 of sweep p / 2. A brick is relaxed in phase p when one of its elements' inputs
+/// may have changed since that element was last relaxed: the brick changed in phase p - 2 (its
+/// own positions), or it or a face neighbour changed in phase p - 1 (the other colour); in the
+/// first sweep, when it or a face neighbour is `hot` (changed by the rest of the last frame). A
+/// skipped element would compute what it computed last time, so the result is that of full
+/// red-black sweeps over the whole lattice, on every backend and for every work split.
 struct RelaxArgs {
   Lattice L;
   int* list = nullptr;  ///< capacity nbricks
   RelaxCtl* ctl = nullptr;
+  std::uint8_t* start = nullptr;                              ///< per brick: first-sweep work
+  std::uint8_t* phase[3] = {nullptr, nullptr, nullptr};       ///< per brick: changed in phase p (ring, p % 3)
   float threshold = 1e-4f;
   float omega = 1.0f;   ///< over-relaxation factor (SolverParams::relax_omega)
+  solver::Wall wall;    ///< boundary box of every clamp
   int sweeps = 0;
 };
 
@@ -538,47 +496,51 @@ struct RelaxShared {
   unsigned maxc;
 };
 
-/// Sweep start, thread per index < K.
+/// Relaxation start, thread per index < 2K.
 HPCM_HD inline void relax_begin_thread(const RelaxArgs& a, int j) {
-  if (j < a.sweeps) {
+  if (j < 2 * a.sweeps) {
     a.ctl->count[j] = 0;
     a.ctl->maxcorr[j] = 0;
   }
   if (j == 0) {
-    a.ctl->stop = a.sweeps;
+    a.ctl->stop = 2 * a.sweeps;
     a.ctl->sweeps = 0;
     a.ctl->active_max = 0;
     a.ctl->last_max = 0.0f;
   }
 }
 
-/// Work list of sweep s: hot bricks and their face neighbours (BrickGrid::dilate_to_list),
-/// thread per brick. The order of the list does not matter: every result is order-free.
-HPCM_HD inline void relax_list_thread(const RelaxArgs& a, int s, long long b) {
-  if (s >= a.ctl->stop || b >= a.L.nbricks) return;
-  const Lattice& L = a.L;
-  int bx, by, bz;
-  L.brick_coords(b, bx, by, bz);
-  const long long sy = L.nbx, sz = static_cast<long long>(L.nbx) * L.nby;
-  bool on = L.hot[b];
-  if (!on && bx > 0) on = L.hot[b - 1];
-  if (!on && bx + 1 < L.nbx) on = L.hot[b + 1];
-  if (!on && by > 0) on = L.hot[b - sy];
-  if (!on && by + 1 < L.nby) on = L.hot[b + sy];
-  if (!on && bz > 0) on = L.hot[b - sz];
-  if (!on && bz + 1 < L.nbz) on = L.hot[b + sz];
-  if (on) a.list[at_add(&a.ctl->count[s], 1)] = static_cast<int>(b);
+/// Relaxation start, thread per brick: first-sweep work and clear phase flags.
+HPCM_HD inline void relax_start_thread(const RelaxArgs& a, long long b) {
+  if (b >= a.L.grid.count) return;
+  a.start[b] = a.L.grid.flagged_or_face_neighbour(a.L.hot, b) ? 1 : 0;
+  for (int r = 0; r < 3; ++r) a.phase[r][b] = 0;
 }
 
-/// One colour of sweep s over the listed bricks (blocks stride over the list). Elements of one
-/// colour only read the other colour, so the order inside the pass does not matter.
+/// Work list of phase p, thread per brick. The order of the list does not matter: every
+/// result is order-free.
+HPCM_HD inline void relax_list_thread(const RelaxArgs& a, int p, long long b) {
+  if (p >= a.ctl->stop || b >= a.L.grid.count) return;
+  const solver::BrickGrid& g = a.L.grid;
+  bool on;
+  if (p < 2)
+    on = a.start[b] || (p == 1 && g.flagged_or_face_neighbour(a.phase[0], b));
+  else
+    on = a.phase[(p - 2) % 3][b] || g.flagged_or_face_neighbour(a.phase[(p - 1) % 3], b);
+  if (p >= 2) a.phase[p % 3][b] = 0;  // held phase p - 3, no longer needed
+  if (on) a.list[at_add(&a.ctl->count[p], 1)] = static_cast<int>(b);
+}
+
+/// Phase p over the listed bricks (blocks stride over the list). Elements of one colour only
+/// read the other colour, so the order inside the pass does not matter.
 template <class B>
-HPCM_HD void relax_colour_block(const RelaxArgs& a, int s, int colour, RelaxShared& sh, B& blk) {
-  if (s >= a.ctl->stop) return;  // uniform; nobody writes stop during this kernel
+HPCM_HD void relax_colour_block(const RelaxArgs& a, int p, RelaxShared& sh, B& blk) {
+  if (p >= a.ctl->stop) return;  // uniform; nobody writes stop during this kernel
   const Lattice& L = a.L;
   const int T = blk.threads();
-  const int n = a.ctl->count[s];
-  const int bs = L.bs, half = bs / 2, per = bs * bs * half;
+  const int n = a.ctl->count[p];
+  const int colour = p & 1;
+  const int bs = L.grid.size, half = bs / 2, per = bs * bs * half;
   blk.each([&](int tid) {
     if (tid == 0) {
       sh.any = 0;
@@ -602,7 +564,7 @@ HPCM_HD void relax_colour_block(const RelaxArgs& a, int s, int colour, RelaxShar
         const int c = gather(L, x, y, z, i, nb);
         if (c == 0) continue;
         const Vec3 cur = L.pos[i];
-        const Vec3 p = solver::relax_element(nb, c, cur, a.omega);
+        const Vec3 p = solver::relax_element(nb, c, cur, a.omega, a.wall);
         const Vec3 d = p - cur;
         const float corr = sqrtf(d.x * d.x + d.y * d.y + d.z * d.z);
         if (!(corr >= a.threshold) || corr == 0.0f) continue;  // small corrections are skipped
@@ -614,8 +576,9 @@ HPCM_HD void relax_colour_block(const RelaxArgs& a, int s, int colour, RelaxShar
     blk.each([&](int tid) {
       if (tid == 0) {
         if (sh.any) {
-          L.changed[b] = 1;
-          at_max_u32(&a.ctl->maxcorr[s], sh.maxc);
+          a.phase[p % 3][b] = 1;
+          L.touched[b] = 1;
+          at_max_u32(&a.ctl->maxcorr[p], sh.maxc);
         }
         sh.any = 0;
         sh.maxc = 0;
@@ -624,30 +587,28 @@ HPCM_HD void relax_colour_block(const RelaxArgs& a, int s, int colour, RelaxShar
   }
 }
 
-/// End of sweep s (grid-stride over the list): hot <- changed, touched |= changed; thread 0
-/// books the sweep and decides the early exit.
-HPCM_HD inline void relax_end_thread(const RelaxArgs& a, int s, long long g, long long nthreads) {
-  if (s >= a.ctl->stop) return;
-  const Lattice& L = a.L;
-  const int n = a.ctl->count[s];
-  for (long long j = g; j < n; j += nthreads) {
-    const long long b = a.list[j];
-    const std::uint8_t ch = L.changed[b];
-    L.hot[b] = ch;
-    if (ch) L.touched[b] = 1;
-    L.changed[b] = 0;
+/// End of phase p (one thread): books the phase; an empty phase ends the relaxation (every later
+/// phase would be empty too).
+HPCM_HD inline void relax_end_thread(const RelaxArgs& a, int p) {
+  if (p >= a.ctl->stop) return;
+  const int n = a.ctl->count[p];
+  if (n == 0) {
+    a.ctl->stop = p;
+    return;
   }
-  if (g == 0) {
-    if (n == 0) {
-      a.ctl->stop = s;  // nothing to relax: the sweep does not count
-    } else {
-      const float m = bits_float(a.ctl->maxcorr[s]);
-      a.ctl->sweeps = s + 1;
-      a.ctl->last_max = m;
-      if (n > a.ctl->active_max) a.ctl->active_max = n;
-      if (m < a.threshold || m == 0.0f) a.ctl->stop = s + 1;  // early exit
-    }
-  }
+  const int s = p / 2;
+  const float m = bits_float(a.ctl->maxcorr[p]);
+  a.ctl->last_max = s + 1 > a.ctl->sweeps ? m : (m > a.ctl->last_max ? m : a.ctl->last_max);
+  a.ctl->sweeps = s + 1;
+  if (n > a.ctl->active_max) a.ctl->active_max = n;
+}
+
+/// After the last phase, thread per brick: hot <- changed by the last sweep (work for the
+/// next frame; nothing when the relaxation ended early).
+HPCM_HD inline void relax_finish_thread(const RelaxArgs& a, long long b) {
+  if (b >= a.L.grid.count) return;
+  const int P = 2 * a.sweeps;
+  a.L.hot[b] = a.ctl->stop >= P && P >= 2 && (a.phase[(P - 1) % 3][b] || a.phase[(P - 2) % 3][b]) ? 1 : 0;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -718,7 +679,7 @@ HPCM_HD void layer_block(const LayerArgs& a, long long b, LayerShared& sh, B& bl
   }
   int lo[3], hi[3];
   L.brick_range(b, lo, hi);
-  const int bs = L.bs, per = bs * bs * bs;
+  const int bs = L.grid.size, per = bs * bs * bs;
   blk.each([&](int tid) {
     if (tid == 0) {
       sh.anyv = 0;
@@ -764,7 +725,7 @@ HPCM_HD void layer_block(const LayerArgs& a, long long b, LayerShared& sh, B& bl
   blk.each([&](int tid) {
     if (tid == 0) {
       L.has_vel[b] = sh.anyv ? 1 : 0;
-      if (sh.moved) L.hot[b] = 1;
+      if (sh.moved) L.hot[b] = L.unchecked[b] = 1;
       L.touched[b] = 0;
       at_add(&a.ctl->count, 1);
       if (a.speeds) {
@@ -792,7 +753,7 @@ HPCM_HD void speed_sum_block(const LayerArgs& a, SpeedShared& sh, B& blk) {
     double s[kTissueCount] = {0, 0, 0, 0};
     float m[kTissueCount] = {0, 0, 0, 0};
     long long mv = 0;
-    for (long long b = tid; b < a.L.nbricks; b += T) {
+    for (long long b = tid; b < a.L.grid.count; b += T) {
       for (int t = 0; t < kTissueCount; ++t) {
         s[t] += a.part_sum[b * kTissueCount + t];
         const float x = a.part_max[b * kTissueCount + t];

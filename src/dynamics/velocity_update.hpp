@@ -12,6 +12,7 @@ namespace hpcm::dynamics {
 struct LayerConstants {
   int mode;            ///< 0 none, 1 simple, 2 viscoelastic
   float alpha, b0, dead_zone, v_max, beta;
+  float sleep_speed;   ///< velocities below it become 0 (0: never)
   float s[4], b1[4], rho[4], inv_mass[4];
   float lo[3], hi[3];  ///< boundary clamp box [-m, N-1+m]
 };
@@ -39,6 +40,8 @@ HPCM_HD inline Vec3 velocity_update(const LayerConstants& k, int tissue, bool fi
     if (speed > k.v_max) {
       const float f = k.v_max / speed;
       v = Vec3{v.x * f, v.y * f, v.z * f};
+    } else if (speed < k.sleep_speed) {
+      v = Vec3{0, 0, 0};  // 5b. come to rest: a velocity this small would only decay
     }
     const float g = k.beta * k.rho[tissue];  // 6. position update
     x = Vec3{post.x + g * v.x, post.y + g * v.y, post.z + g * v.z};

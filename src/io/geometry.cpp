@@ -56,70 +56,29 @@ std::string extension_of(Format f) {
   }
 }
 
-AxisMap lps_axis_map(const std::array<double, 9>& d) {
-  AxisMap m;
-  bool row_used[3] = {false, false, false}, col_used[3] = {false, false, false};
-  for (int k = 0; k < 3; ++k) {
-    int br = -1, bc = -1;
-    double best = -1;
-    for (int r = 0; r < 3; ++r) {
-      if (row_used[r]) continue;
-      for (int c = 0; c < 3; ++c) {
-        if (col_used[c]) continue;
-        const double v = std::abs(d[r * 3 + c]);
-        if (v > best) best = v, br = r, bc = c;
-      }
-    }
-    row_used[br] = col_used[bc] = true;
-    m.src[br] = bc;
-    m.flip[br] = d[br * 3 + bc] < 0;
-  }
-  return m;
-}
-
-Volume reorient_to_lps(const float* data, const Geometry& g) {
-  const AxisMap m = lps_axis_map(g.direction);
+Grid grid_in_lps_order(const Grid& g, const IndexOrder& order) {
   const int od[3] = {g.dims.x, g.dims.y, g.dims.z};
-  const std::int64_t ostride[3] = {1, od[0], static_cast<std::int64_t>(od[0]) * od[1]};
-  Volume v;
+  Grid l;
   int nd[3];
-  std::int64_t step[3];
-  std::int64_t start = 0;
   for (int p = 0; p < 3; ++p) {
-    const int a = m.src[p];
+    const int a = order.axis[static_cast<std::size_t>(p)];
     nd[p] = od[a];
-    v.spacing[p] = g.spacing[a];
-    const double sgn = m.flip[p] ? -1.0 : 1.0;
-    for (int r = 0; r < 3; ++r) v.direction[r * 3 + p] = sgn * g.direction[r * 3 + a];
-    step[p] = m.flip[p] ? -ostride[a] : ostride[a];
-    if (m.flip[p]) start += static_cast<std::int64_t>(od[a] - 1) * ostride[a];
+    l.spacing[p] = g.spacing[a];
+    const double sgn = order.reversed[static_cast<std::size_t>(p)] ? -1.0 : 1.0;
+    for (int r = 0; r < 3; ++r) l.direction[r * 3 + p] = sgn * g.direction[r * 3 + a];
   }
-  v.dims = {nd[0], nd[1], nd[2]};
-  // New origin: physical position of the old voxel that becomes (0,0,0).
+  l.dims = {nd[0], nd[1], nd[2]};
+  // New origin: physical position of the stored voxel that becomes (0,0,0).
   for (int r = 0; r < 3; ++r) {
     double o = g.origin[r];
     for (int p = 0; p < 3; ++p) {
-      if (!m.flip[p]) continue;
-      const int a = m.src[p];
+      if (!order.reversed[static_cast<std::size_t>(p)]) continue;
+      const int a = order.axis[static_cast<std::size_t>(p)];
       o += g.direction[r * 3 + a] * g.spacing[a] * (od[a] - 1);
     }
-    v.origin[r] = o;
+    l.origin[r] = o;
   }
-  v.hu.resize(v.size());
-  const bool identity = m.src[0] == 0 && m.src[1] == 1 && m.src[2] == 2 && !m.flip[0] && !m.flip[1] && !m.flip[2];
-  if (identity) {
-    std::copy(data, data + v.size(), v.hu.begin());
-    return v;
-  }
-#pragma omp parallel for schedule(static)
-  for (int z = 0; z < nd[2]; ++z) {
-    for (int y = 0; y < nd[1]; ++y) {
-      std::int64_t src = start + z * step[2] + y * step[1];
-      float* dst = v.hu.data() + (static_cast<std::int64_t>(z) * nd[1] + y) * nd[0];
-      for (int x = 0; x < nd[0]; ++x, src += step[0]) dst[x] = data[src];
-    }
-  }
-  return v;
+  return l;
 }
 
 std::array<double, 9> mat_inverse(const std::array<double, 9>& m) {
@@ -298,6 +257,99 @@ std::string format_bytes(double bytes) {
 }
 
 }  // namespace detail
+
+bool IndexOrder::identity() const {
+  return axis == std::array<int, 3>{0, 1, 2} && !reversed[0] && !reversed[1] && !reversed[2];
+}
+
+IndexOrder lps_order_of(const std::array<double, 9>& d) {
+  // Greedy on the largest |direction| entries: row r is the LPS axis, column c the stored axis.
+  IndexOrder o;
+  bool row_used[3] = {false, false, false}, col_used[3] = {false, false, false};
+  for (int k = 0; k < 3; ++k) {
+    int br = 0, bc = 0;
+    double best = -1;
+    for (int r = 0; r < 3; ++r) {
+      if (row_used[r]) continue;
+      for (int c = 0; c < 3; ++c) {
+        if (col_used[c]) continue;
+        const double v = std::abs(d[r * 3 + c]);
+        if (v > best) best = v, br = r, bc = c;
+      }
+    }
+    row_used[br] = col_used[bc] = true;
+    o.axis[static_cast<std::size_t>(br)] = bc;
+    o.reversed[static_cast<std::size_t>(br)] = d[br * 3 + bc] < 0;
+  }
+  return o;
+}
+
+Grid grid_of(const Volume& v) {
+  Grid g;
+  g.dims = v.dims;
+  g.spacing = v.spacing;
+  g.origin = v.origin;
+  g.direction = v.direction;
+  return g;
+}
+
+Volume to_lps_order(const Volume& stored) {
+  const IndexOrder order = lps_order_of(stored.direction);
+  const Grid g = detail::grid_in_lps_order(grid_of(stored), order);
+  Volume v;
+  v.dims = g.dims;
+  v.spacing = g.spacing;
+  v.origin = g.origin;
+  v.direction = g.direction;
+  if (order.identity()) {
+    v.hu = stored.hu;
+    return v;
+  }
+  v.hu.resize(stored.hu.size());
+  const float* src = stored.hu.data();
+  float* dst = v.hu.data();
+  detail::for_each_lattice_voxel(stored.dims, order, [&](std::int64_t l, std::int64_t s) { dst[l] = src[s]; });
+  return v;
+}
+
+Input prepare_input(Volume stored, const InputOptions& opt, const std::string& source) {
+  validate_volume(stored, source);
+  Input in;
+  in.source = source;
+  in.downsample = opt.downsample;
+  in.roi = {{0, 0, 0}, stored.dims};
+  if (opt.roi) {
+    const Box& r = *opt.roi;
+    const int d[3] = {stored.dims.x, stored.dims.y, stored.dims.z};
+    const int lo[3] = {r.lo.x, r.lo.y, r.lo.z}, hi[3] = {r.hi.x, r.hi.y, r.hi.z};
+    for (int a = 0; a < 3; ++a)
+      if (lo[a] < 0 || hi[a] > d[a] || lo[a] >= hi[a])
+        throw Error("roi " + std::to_string(r.lo.x) + "," + std::to_string(r.lo.y) + "," + std::to_string(r.lo.z) +
+                    "," + std::to_string(r.hi.x) + "," + std::to_string(r.hi.y) + "," + std::to_string(r.hi.z) +
+                    ": file axis " + std::to_string(a) + " range [" + std::to_string(lo[a]) + ", " +
+                    std::to_string(hi[a]) + ") must satisfy 0 <= lo < hi <= " + std::to_string(d[a]) +
+                    " (voxel indices of " + source + " as stored, upper bound exclusive)");
+    stored = crop(stored, r.lo, r.hi);
+    in.roi = r;
+  }
+  const int f = opt.downsample;
+  const int mind = std::min({stored.dims.x, stored.dims.y, stored.dims.z});
+  if (f < 1 || f > mind)
+    throw Error("downsample factor " + std::to_string(f) + " is out of range [1, " + std::to_string(mind) +
+                "] (the smallest dimension of " + source + (opt.roi ? " after the roi crop" : "") + ")");
+  in.left_out = {stored.dims.x % f, stored.dims.y % f, stored.dims.z % f};
+  in.order = lps_order_of(stored.direction);
+  if (f > 1) {
+    const Volume coarse = downsample(stored, f);
+    in.lattice_grid = grid_of(coarse);
+    in.lattice = to_lps_order(coarse);
+  } else {
+    in.lattice_grid = grid_of(stored);
+    in.lattice = to_lps_order(stored);
+  }
+  in.stored = std::move(stored);
+  return in;
+}
 
 bool is_supported_volume_extension(const std::string& path) {
   return detail::format_of(path) != detail::Format::Unknown;

@@ -2,9 +2,11 @@
 // Internals of hpcm::io shared by its two translation units and the tests (tests/io).
 // Plain C++: no ITK type appears here.
 #include <array>
+#include <cstdint>
 #include <string>
 #include <vector>
 
+#include "hpcm/io.hpp"
 #include "hpcm/model.hpp"
 #include "hpcm/volume.hpp"
 
@@ -20,29 +22,45 @@ std::string extension_of(Format f);         ///< ".nii.gz", ...
 
 /// Geometry of an image in file index order (ITK conventions: LPS physical space,
 /// direction row-major, column a = direction of index axis a).
-struct Geometry {
-  Int3 dims;
-  std::array<double, 3> spacing{1, 1, 1};
-  std::array<double, 3> origin{0, 0, 0};
-  std::array<double, 9> direction{1, 0, 0, 0, 1, 0, 0, 0, 1};
-};
+using Geometry = Grid;
 
-/// For each LPS axis p (0 = L, 1 = P, 2 = S): the file index axis that runs closest to it and
-/// whether it runs backwards (a permutation; greedy on the largest |direction| entries).
-struct AxisMap {
-  std::array<int, 3> src{0, 1, 2};
-  std::array<bool, 3> flip{false, false, false};
-};
-AxisMap lps_axis_map(const std::array<double, 9>& direction);
+/// Calls f(lattice_index, stored_index) for every voxel of a grid of `stored_dims` laid in LPS
+/// order by `order` (lattice_index runs x fastest in LPS order). One loop serves both
+/// directions of the permutation; z planes run in parallel.
+template <class F>
+void for_each_lattice_voxel(Int3 stored_dims, const IndexOrder& order, F&& f) {
+  const int sd[3] = {stored_dims.x, stored_dims.y, stored_dims.z};
+  const std::int64_t sstride[3] = {1, sd[0], static_cast<std::int64_t>(sd[0]) * sd[1]};
+  int ld[3];
+  std::int64_t step[3];
+  std::int64_t start = 0;
+  for (int p = 0; p < 3; ++p) {
+    const int a = order.axis[static_cast<std::size_t>(p)];
+    ld[p] = sd[a];
+    step[p] = order.reversed[static_cast<std::size_t>(p)] ? -sstride[a] : sstride[a];
+    if (order.reversed[static_cast<std::size_t>(p)]) start += static_cast<std::int64_t>(sd[a] - 1) * sstride[a];
+  }
+#pragma omp parallel for schedule(static)
+  for (int z = 0; z < ld[2]; ++z)
+    for (int y = 0; y < ld[1]; ++y) {
+      std::int64_t s = start + z * step[2] + y * step[1];
+      std::int64_t l = (static_cast<std::int64_t>(z) * ld[1] + y) * ld[0];
+      for (int x = 0; x < ld[0]; ++x, s += step[0], ++l) f(l, s);
+    }
+}
 
-/// Permutes/flips a scalar buffer in file index order into LPS index order (SPEC §2). The
-/// physical position of every voxel is unchanged; direction, spacing and origin follow.
-Volume reorient_to_lps(const float* data, const Geometry& g);
+/// The grid `g` (stored order) as the lattice sees it: dims, spacing, origin, direction in LPS
+/// order. Every voxel keeps its physical position.
+Grid grid_in_lps_order(const Grid& g, const IndexOrder& order);
+
+/// Throws unless `m` is the lattice of `in` (dims and geometry), naming `what`.
+void check_model_matches(const Input& in, const Model& m, const std::string& what);
 
 /// 3x3 helpers (row-major).
 std::array<double, 9> mat_inverse(const std::array<double, 9>& m);
 
-/// Inverse-mapping resample of the deformed lattice onto the original grid (SPEC/issue 4):
+/// Inverse-mapping resample of the deformed lattice onto the grid of `original` (any index
+/// order):
 /// output voxel q -> lattice point x; rest position X solves X = x - u(X) (fixed-point,
 /// trilinear u); HU = trilinear sample of `original` at X's physical position, kAirHU where
 /// that lies outside `original`. `pos` are lattice positions (pos.size() == m.size()).

@@ -22,6 +22,7 @@
 #include <itkImage.h>
 #include <itkImageFileReader.h>
 #include <itkImageFileWriter.h>
+#include <itkMetaDataObject.h>
 #include <itkMetaImageIO.h>
 #include <itkNiftiImageIO.h>
 #include <itkNrrdImageIO.h>
@@ -212,7 +213,7 @@ void check_hu(const std::string& path, const std::vector<float>& hu, std::vector
                        "): air is about -1000 HU; if the rescale intercept is missing, every tissue class is wrong");
 }
 
-// Image (file index order, LPS geometry g) -> checked Volume in LPS index order.
+// Image (file index order, LPS geometry g) -> checked Volume in the same order (as stored).
 Volume finish(const std::string& path, const float* data, const detail::Geometry& g, std::vector<std::string>& warnings) {
   for (int a = 0; a < 3; ++a)
     if (!(g.spacing[a] > 0) || !std::isfinite(g.spacing[a]))
@@ -231,7 +232,12 @@ Volume finish(const std::string& path, const float* data, const detail::Geometry
     throw Error(path + ": " + std::to_string(bad) + " non-finite values (NaN or Inf), the first at voxel (" +
                 std::to_string(x) + "," + std::to_string(y) + "," + std::to_string(z) + "); HU values must be finite");
   }
-  Volume v = detail::reorient_to_lps(data, g);
+  Volume v;  // as stored: the file's index order and geometry (to_lps_order reorients)
+  v.dims = g.dims;
+  v.spacing = g.spacing;
+  v.origin = g.origin;
+  v.direction = g.direction;
+  v.hu.assign(data, data + n);
   validate_volume(v, path);
   check_hu(path, v.hu, warnings);
   return v;
@@ -744,7 +750,7 @@ void write_scalar(const std::vector<float>& values, Int3 dims, const std::array<
 
 // ---- public API ----------------------------------------------------------------------------
 
-Volume read_volume(const std::string& path, const ReadOptions& opt) {
+Volume read_volume_as_stored(const std::string& path, const ReadOptions& opt) {
   if (path.empty()) throw Error("no input volume given (supported: " + std::string(kSupported) + ")");
   std::error_code ec;
   const fs::file_status st = fs::status(path, ec);
@@ -779,6 +785,18 @@ Volume read_volume(const std::string& path, const ReadOptions& opt) {
   return v;
 }
 
+Volume read_volume(const std::string& path, const ReadOptions& opt) {
+  return to_lps_order(read_volume_as_stored(path, opt));
+}
+
+Input load_input(const std::string& path, const InputOptions& opt) {
+  ReadOptions ro;
+  ro.series_uid = opt.series_uid;
+  ro.dicom_duplicates = opt.dicom_duplicates;
+  ro.dicom_skip_unreadable = opt.dicom_skip_unreadable;
+  return prepare_input(read_volume_as_stored(path, ro), opt, path);
+}
+
 std::vector<DicomSeriesInfo> list_dicom_series(const std::string& dir) {
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) throw Error(dir + ": not a directory");
@@ -809,33 +827,46 @@ void write_volume(const Volume& v, const std::string& path) {
   write_scalar(v.hu, v.dims, v.spacing, v.origin, v.direction, path);
 }
 
-void write_displacement_field(const Model& m, const std::vector<Vec3>& pos, const std::string& path) {
-  const std::vector<float> u = detail::displacement_mm(m, pos);
+void write_displacement_field(const Input& in, const Model& m, const std::vector<Vec3>& pos, const std::string& path) {
+  const std::vector<float> u = displacement_on_input_grid(in, m, pos);
   using VecImage = itk::Image<itk::Vector<float, 3>, 3>;
-  auto img = make_image<VecImage>(m.dims, m.spacing, m.origin, m.direction);
+  static_assert(sizeof(itk::Vector<float, 3>) == 3 * sizeof(float), "itk::Vector<float, 3> is three packed floats");
+  const Grid& g = in.lattice_grid;
+  auto img = make_image<VecImage>(g.dims, g.spacing, g.origin, g.direction);
   img->Allocate();
-  auto* p = img->GetBufferPointer();
-  for (Index i = 0; i < m.size(); ++i)
-    for (int c = 0; c < 3; ++c) p[i][c] = u[3 * i + c];
+  std::memcpy(static_cast<void*>(img->GetBufferPointer()), u.data(), u.size() * sizeof(float));
+  const Format f = detail::format_of(path);
+  if (f == Format::Nrrd || f == Format::Nhdr)
+    // 3D Slicer reads this NRRD key (since September 2025): a modeling (to-parent) transform
+    // moves rest positions to deformed ones, which is what this field stores.
+    itk::EncapsulateMetaData<std::string>(img->GetMetaDataDictionary(), "displacement field type", "modeling");
   write_image(img.GetPointer(), path, {Format::Nifti, Format::NiftiGz, Format::Nrrd, Format::Mha},
               "a displacement field");
 }
 
-void write_deformed_volume(const Volume& original, const Model& m, const std::vector<Vec3>& pos,
+void write_deformed_volume(const Volume& target, const Model& m, const std::vector<Vec3>& pos,
                            const std::string& path) {
-  validate_volume(original, path);
-  const std::vector<float> hu = detail::resample_deformed(original, m, pos);
-  write_scalar(hu, original.dims, original.spacing, original.origin, original.direction, path);
+  validate_volume(target, path);
+  const std::vector<float> hu = detail::resample_deformed(target, m, pos);
+  write_scalar(hu, target.dims, target.spacing, target.origin, target.direction, path);
 }
 
-void write_label_map(const Model& m, const std::string& path) {
+void write_deformed_volume(const Input& in, const Model& m, const std::vector<Vec3>& pos, const std::string& path) {
+  detail::check_model_matches(in, m, path + ": deformed CT");
+  write_deformed_volume(in.stored, m, pos, path);
+}
+
+void write_label_map(const Input& in, const Model& m, const std::string& path) {
+  detail::check_model_matches(in, m, path + ": label map");
   if (static_cast<Index>(m.tissue.size()) != m.size())
     throw Error(path + ": label map: the model has " + std::to_string(m.tissue.size()) + " tissue labels for " +
                 std::to_string(m.size()) + " elements");
   using LabelImage = itk::Image<unsigned char, 3>;
-  auto img = make_image<LabelImage>(m.dims, m.spacing, m.origin, m.direction);
+  const Grid& g = in.lattice_grid;
+  auto img = make_image<LabelImage>(g.dims, g.spacing, g.origin, g.direction);
   img->Allocate();
-  std::copy(m.tissue.begin(), m.tissue.end(), img->GetBufferPointer());
+  unsigned char* dst = img->GetBufferPointer();
+  detail::for_each_lattice_voxel(g.dims, in.order, [&](std::int64_t l, std::int64_t s) { dst[s] = m.tissue[l]; });
   write_image(img.GetPointer(), path, kVolumeFormats, "a label map");
   // Colour table in Slicer's .ctbl format ("index name R G B A"), beside the label map.
   const Format f = detail::format_of(path);
@@ -844,7 +875,7 @@ void write_label_map(const Model& m, const std::string& path) {
   AtomicWrite aw(ctbl);
   {
     std::ofstream out(aw.temp_path());
-    out << "# hpcm tissue classes (SPEC section 3): index name R G B A\n";
+    out << "# hpcm tissue classes: index name R G B A\n";
     static const int rgba[kTissueCount][4] = {{0, 0, 0, 0}, {230, 200, 150, 255}, {200, 70, 60, 255}, {241, 214, 145, 255}};
     for (int t = 0; t < kTissueCount; ++t)
       out << t << ' ' << tissue_name(t) << ' ' << rgba[t][0] << ' ' << rgba[t][1] << ' ' << rgba[t][2] << ' '

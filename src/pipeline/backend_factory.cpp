@@ -1,22 +1,11 @@
-#include <memory>
+#include "hpcm/backend_factory.hpp"
 
-#include "pipeline/cpu_backend.hpp"
-
-namespace hpcm {
-
+#include "cpu/cpu_backend.hpp"
 #if defined(HPCM_HAVE_CUDA)
-// Implemented in src/cuda (compiled only when a CUDA compiler is found).
-std::unique_ptr<Backend> make_cuda_backend();
-bool cuda_device_present(std::string* why);
+#include "cuda/cuda_backend.hpp"
 #endif
 
-const char* backend_name(BackendKind k) { return k == BackendKind::Cpu ? "cpu" : "cuda"; }
-
-BackendKind parse_backend(const std::string& s, const std::string& what) {
-  if (s == "cpu") return BackendKind::Cpu;
-  if (s == "cuda") return BackendKind::Cuda;
-  throw Error(what + " = '" + s + "' is not one of cpu|cuda");
-}
+namespace hpcm {
 
 bool cuda_available(std::string* why) {
 #if defined(HPCM_HAVE_CUDA)
@@ -28,7 +17,7 @@ bool cuda_available(std::string* why) {
 }
 
 std::unique_ptr<Backend> make_backend(BackendKind k) {
-  if (k == BackendKind::Cpu) return std::make_unique<CpuBackend>();
+  if (k == BackendKind::Cpu) return std::make_unique<cpu::CpuBackend>();
   std::string why;
   if (!cuda_available(&why)) throw Error("--backend cuda: no CUDA device: " + why);
 #if defined(HPCM_HAVE_CUDA)

@@ -2,6 +2,8 @@
 
 #include <cmath>
 
+#include "solver/tool_limit.hpp"
+
 namespace hpcm {
 
 Simulation::Simulation(Model model, Params params, BackendKind backend)
@@ -33,9 +35,12 @@ void Simulation::set_params(const Params& p) {
     if (materials) rebuild_materials(model_, params_);
     backend_->load(model_, params_, s);
     compute_anchors();
-    push_fixed();
+    compute_tool_limit();
+    move_tool(requested_offset_);
   } else {
     backend_->set_params(params_);
+    compute_tool_limit();  // the boundary margin may have changed
+    move_tool(requested_offset_);
   }
 }
 
@@ -47,21 +52,36 @@ void Simulation::reset() {
   grabbed_.clear();
   grab_origin_.clear();
   grab_centre_ = -1;
-  tool_offset_ = {};
+  tool_offset_ = requested_offset_ = limit_lo_ = limit_hi_ = {};
   frame_ = 0;
   push_fixed();
 }
 
 void Simulation::compute_anchors() {
   anchors_.clear();
+  anchored_.assign(static_cast<std::size_t>(model_.size()), 0);
   if (params_.solver.anchors == AnchorMode::None) return;
   const Int3 d = model_.dims;
   for (Index i = 0; i < model_.size(); ++i) {
     const Int3 c = model_.coords(i);
     const bool border = c.x == 0 || c.y == 0 || c.z == 0 || c.x == d.x - 1 || c.y == d.y - 1 || c.z == d.z - 1;
     const bool bone = model_.tissue[i] == static_cast<std::uint8_t>(Tissue::Bone);
-    if (params_.solver.anchors == AnchorMode::Border ? border : bone) anchors_.push_back(i);
+    if (params_.solver.anchors == AnchorMode::Border ? border : bone) {
+      anchors_.push_back(i);
+      anchored_[static_cast<std::size_t>(i)] = 1;
+    }
   }
+}
+
+void Simulation::compute_tool_limit() {
+  limit_lo_ = limit_hi_ = {};
+  if (grabbed_.empty()) return;
+  // Grabbed elements move with the tool even where they are anchored (bone under the tool).
+  std::vector<std::uint8_t> anchored = anchored_;
+  for (Index g : grabbed_) anchored[static_cast<std::size_t>(g)] = 0;
+  const solver::ToolLimit lim = solver::tool_limit(model_, grabbed_, grab_origin_, anchored, params_.dynamics.margin);
+  limit_lo_ = lim.lo;
+  limit_hi_ = lim.hi;
 }
 
 void Simulation::grab(Index centre, float radius) {
@@ -84,14 +104,18 @@ void Simulation::grab(Index centre, float radius) {
         }
       }
   grab_centre_ = centre;
-  tool_offset_ = {};
-  push_fixed();
+  tool_offset_ = requested_offset_ = {};
+  compute_tool_limit();
+  move_tool(Vec3{});
 }
 
 void Simulation::move_tool(Vec3 offset) {
   if (!std::isfinite(offset.x) || !std::isfinite(offset.y) || !std::isfinite(offset.z))
     throw Error("tool offset must be finite");
+  requested_offset_ = offset;
   tool_offset_ = offset;
+  if (grabbing())
+    for (int b = 0; b < 3; ++b) tool_offset_[b] = std::min(std::max(offset[b], limit_lo_[b]), limit_hi_[b]);
   push_fixed();
 }
 
@@ -99,7 +123,7 @@ void Simulation::release() {
   grabbed_.clear();
   grab_origin_.clear();
   grab_centre_ = -1;
-  tool_offset_ = {};
+  tool_offset_ = requested_offset_ = limit_lo_ = limit_hi_ = {};
   push_fixed();
 }
 
@@ -126,6 +150,8 @@ FrameReport Simulation::step(const StepOptions& opt) {
   r.frame = frame_;
   r.deform = grabbing();
   r.grab_offset = r.deform ? norm(tool_offset_) : 0.0f;
+  r.requested_offset = r.deform ? norm(requested_offset_) : 0.0f;
+  r.tool_limited = r.deform && tool_limited();
   Backend& b = *backend_;
   b.mark(0);
   b.snapshot();  // X- <- X
@@ -137,6 +163,9 @@ FrameReport Simulation::step(const StepOptions& opt) {
   }
   // Idle stage: relax only. Propagating here would cancel the inertial motion (SPEC §6).
   r.relax_sweeps = b.relax(params_.solver.relax_sweeps).sweeps;
+  const RestoreStats rs = b.restore_links();  // every link back in its box
+  r.restored_links = rs.violated_links;
+  r.restore_violation = rs.max_violation;
   b.mark(2);
   if (opt.link_violation) {
     std::vector<Vec3> pos;
@@ -147,6 +176,13 @@ FrameReport Simulation::step(const StepOptions& opt) {
   SpeedStats sp;
   b.velocity_layer(opt.speeds ? &sp : nullptr);  // X+ -> X_{t+1}, V_t; boundary clamp; frame-end snapshot
   b.mark(4);
+  if (opt.cell_jacobian) {
+    std::vector<Vec3> pos;
+    b.download_positions(pos);
+    const CellJacobianStats cj = cell_jacobian(model_, pos);
+    r.min_cell_jacobian = cj.min_det;
+    r.folded_cells = cj.folded;
+  }
   r.snapshot_ms = b.elapsed_ms(0, 1);
   r.chainmail_ms = b.elapsed_ms(1, 2);
   r.inertia_ms = b.elapsed_ms(3, 4);

@@ -14,7 +14,7 @@
 #include <cmath>
 
 #include "hpcm/material.hpp"
-#include "solver/link_box.hpp"
+#include "core/link_box.hpp"
 
 namespace hpcm::solver {
 
@@ -34,12 +34,31 @@ struct Neighbour {
   Vec3 p;         ///< neighbour's position
 };
 
+/// The boundary box every element stays inside, [-margin, N_axis - 1 + margin] on each axis
+/// (the velocity layer's boundary clamp, SPEC §5.7). ChainMail treats it as one more box: the
+/// wave, the relaxation and the link restoration never move an element out of it, so the
+/// boundary clamp never has to collapse cells that ChainMail placed.
+struct Wall {
+  float lo[3] = {-kInf, -kInf, -kInf};
+  float hi[3] = {kInf, kInf, kInf};
+};
+inline Wall make_wall(Int3 dims, float margin) {
+  Wall w;
+  const int d[3] = {dims.x, dims.y, dims.z};
+  for (int a = 0; a < 3; ++a) {
+    w.lo[a] = -margin;
+    w.hi[a] = static_cast<float>(d[a] - 1) + margin;
+  }
+  return w;
+}
+
 HPCM_HD inline bool key_less(float ta, Index ia, float tb, Index ib) { return ta < tb || (ta == tb && ia < ib); }
 
-/// Clamps p0 into the intersection of the boxes of the neighbours in `mask` (bit k = nb[k]).
-/// Where the intersection is empty on an axis, the earliest neighbour's box (by key) is used;
-/// a gap of a few ulps (rounding of boxes that touch) takes the touching point instead.
-HPCM_HD inline Vec3 clamp_into_boxes(Vec3 p0, const Neighbour* nb, int count, unsigned mask) {
+/// Clamps p0 into the intersection of the wall and the boxes of the neighbours in `mask`
+/// (bit k = nb[k]). Where the intersection is empty on an axis, the earliest neighbour's box
+/// (by key) is used, then the wall; a gap of a few ulps (rounding of boxes that touch) takes
+/// the touching point instead. Without a neighbour in `mask`, p0 is returned unchanged.
+HPCM_HD inline Vec3 clamp_into_boxes(Vec3 p0, const Neighbour* nb, int count, unsigned mask, const Wall& wall) {
   int first = -1;
   for (int k = 0; k < count; ++k)
     if ((mask >> k) & 1u)
@@ -47,7 +66,7 @@ HPCM_HD inline Vec3 clamp_into_boxes(Vec3 p0, const Neighbour* nb, int count, un
   Vec3 out = p0;
   if (first < 0) return out;
   for (int b = 0; b < 3; ++b) {
-    float lo = -kInf, hi = kInf;
+    float lo = wall.lo[b], hi = wall.hi[b];
     for (int k = 0; k < count; ++k)
       if ((mask >> k) & 1u) {
         float l, h;
@@ -61,8 +80,10 @@ HPCM_HD inline Vec3 clamp_into_boxes(Vec3 p0, const Neighbour* nb, int count, un
         out[b] = 0.5f * (lo + hi);
         continue;
       }
-      // Truly conflicting boxes: the earliest neighbour wins (SPEC §4).
+      // Truly conflicting boxes: the earliest neighbour wins (SPEC §4), inside the wall.
       link_interval(nb[first].p, nb[first].L, nb[first].axis, nb[first].side, b, lo, hi);
+      out[b] = clampf(clampf(p0[b], lo, hi), wall.lo[b], wall.hi[b]);
+      continue;
     }
     out[b] = clampf(p0[b], lo, hi);
   }
@@ -75,11 +96,12 @@ HPCM_HD inline unsigned long long bucket_of(float t, double delta) {
 }
 
 /// The propagation rule restricted to the candidates of one time bucket (the schedule of
-/// src/solver/propagate.cpp and the CUDA kernels): candidate times below the bucket were
+/// src/cpu/chainmail_propagate.cpp and the CUDA kernels): candidate times below the bucket were
 /// decided in earlier buckets (their upstream sets can no longer change), candidates above it
 /// belong to later buckets.
 HPCM_HD inline bool propagate_in_bucket(long long e, Vec3 p0, const Neighbour* nb, int count,
-                                        unsigned long long bucket, double delta, float& t_out, Vec3& p_out) {
+                                        unsigned long long bucket, double delta, const Wall& wall, float& t_out,
+                                        Vec3& p_out) {
   float cand[6];
   int nc = 0;
   for (int k = 0; k < count; ++k)
@@ -99,7 +121,7 @@ HPCM_HD inline bool propagate_in_bucket(long long e, Vec3 p0, const Neighbour* n
     unsigned mask = 0;
     for (int k = 0; k < count; ++k)
       if (key_less(nb[k].t, nb[k].idx, c, e)) mask |= 1u << k;
-    const Vec3 p = clamp_into_boxes(p0, nb, count, mask);
+    const Vec3 p = clamp_into_boxes(p0, nb, count, mask, wall);
     if (!(p == p0)) {
       t_out = c;
       p_out = p;
@@ -111,12 +133,13 @@ HPCM_HD inline bool propagate_in_bucket(long long e, Vec3 p0, const Neighbour* n
   return false;
 }
 
-/// Relaxation rule: (over-relaxed step toward the) weighted average of the neighbours' proposals p_n + X0_e - X0_n with
+/// Relaxation rule: (over-relaxed step toward the) weighted average of the neighbours'
+/// proposals p_n + X0_e - X0_n with
 /// weight 1/(tau_n + 1e-4), then clamped into all neighbours' boxes (never creates a
 /// violation against the neighbours' current positions).
 /// `omega` over-relaxes the step from the current position `cur` toward the average
 /// (successive over-relaxation; omega = 1 is plain Gauss-Seidel).
-HPCM_HD inline Vec3 relax_element(const Neighbour* nb, int count, Vec3 cur, float omega) {
+HPCM_HD inline Vec3 relax_element(const Neighbour* nb, int count, Vec3 cur, float omega, const Wall& wall) {
   float sx = 0, sy = 0, sz = 0, sw = 0;
   for (int k = 0; k < count; ++k) {
     const float w = 1.0f / (nb[k].tau + 1e-4f);
@@ -131,7 +154,7 @@ HPCM_HD inline Vec3 relax_element(const Neighbour* nb, int count, Vec3 cur, floa
   const Vec3 target = omega == 1.0f ? avg
                                     : Vec3{cur.x + omega * (avg.x - cur.x), cur.y + omega * (avg.y - cur.y),
                                            cur.z + omega * (avg.z - cur.z)};
-  return clamp_into_boxes(target, nb, count, (1u << count) - 1u);
+  return clamp_into_boxes(target, nb, count, (1u << count) - 1u, wall);
 }
 
 }  // namespace hpcm::solver

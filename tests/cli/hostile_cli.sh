@@ -91,7 +91,7 @@ wait $pid 2>/dev/null
 [ ! -e killed ] || fail "a killed run produced its final folder"
 rows=$(($(wc -l <killed.incomplete/frames.csv) - 1))
 [ "$rows" -ge 3 ] || fail "killed run kept $rows frames"
-awk -F, 'NR > 1 && NF != 20 { bad = 1 } END { exit bad }' killed.incomplete/frames.csv || fail "killed run left a half row"
+awk -F, 'NR == 1 { n = NF } NR > 1 && NF != n { bad = 1 } END { exit bad }' killed.incomplete/frames.csv || fail "killed run left a half row"
 "$HPCM" run --phantom 24,24,16 --frames 3 --out killed >/dev/null 2>&1 || fail "run after a killed run"
 [ ! -e killed.incomplete ] || fail "the killed run's staging folder survived the next run"
 ok "killed run kept $rows frames in killed.incomplete/frames.csv; the next run replaced it"

@@ -46,14 +46,27 @@ TEST(Volume, DownsampleGeometry) {
   for (int a = 0; a < 3; ++a) EXPECT_NEAR(p[a], q[a], 1e-12);
 }
 
-TEST(Volume, DownsamplePartialBorderBlocks) {
-  const Volume v = ramp({5, 3, 3});
+TEST(Volume, DownsampleKeepsCompleteBlocksOnlyEachAtItsVoxelsCentre) {
+  // 5 x 7 x 3 voxels at f = 2: complete blocks 2 x 3 x 1; the last voxel row of x, of y and
+  // of z belongs to no block. A partial block would have its voxels' centre off the grid.
+  const Volume v = ramp({5, 7, 3});
   const Volume d = downsample(v, 2);
-  ASSERT_EQ(d.dims, (Int3{3, 2, 2}));
-  // Border block x = 4 only, y in {2}, z in {2}: a single voxel.
-  EXPECT_FLOAT_EQ(d.at(2, 1, 1), v.at(4, 2, 2));
-  // Border block x = 4, y in {0,1}, z in {0,1}: mean of 4 voxels.
-  EXPECT_FLOAT_EQ(d.at(2, 0, 0), (v.at(4, 0, 0) + v.at(4, 1, 0) + v.at(4, 0, 1) + v.at(4, 1, 1)) / 4.0f);
+  ASSERT_EQ(d.dims, (Int3{2, 3, 1}));
+  for (int y = 0; y < 3; ++y)
+    for (int x = 0; x < 2; ++x) {
+      double sum = 0, ci = 0, cj = 0, ck = 0;
+      for (int k = 0; k < 2; ++k)
+        for (int j = 2 * y; j < 2 * y + 2; ++j)
+          for (int i = 2 * x; i < 2 * x + 2; ++i) sum += v.at(i, j, k), ci += i, cj += j, ck += k;
+      EXPECT_FLOAT_EQ(d.at(x, y, 0), float(sum / 8));
+      // The element's physical position is the mean position of the voxels it averages.
+      const auto p = d.index_to_physical(x, y, 0);
+      const auto q = v.index_to_physical(ci / 8, cj / 8, ck / 8);
+      for (int a = 0; a < 3; ++a) EXPECT_NEAR(p[a], q[a], 1e-12) << "element " << x << "," << y;
+    }
+  // f = 3 on 7 voxels: blocks [0,3) and [3,6); voxel 6 is left out.
+  const Volume t = downsample(ramp({7, 7, 7}), 3);
+  EXPECT_EQ(t.dims, (Int3{2, 2, 2}));
 }
 
 TEST(Volume, DownsampleFactorOneAndErrors) {

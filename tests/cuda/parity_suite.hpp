@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "hpcm/backend.hpp"
+#include "hpcm/backend_factory.hpp"
 #include "hpcm/phantom.hpp"
 #include "hpcm/scenario.hpp"
 #include "hpcm/simulation.hpp"

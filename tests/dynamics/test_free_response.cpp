@@ -58,6 +58,7 @@ Params case_params(const Case& c) {
   p.solver.relax_omega = c.omega;
   p.solver.relax_threshold = 0.0f;
   p.solver.grab_radius = 0.5f;  // the centre alone
+  p.solver.sleep = false;       // the exact recursion: no velocity comes to rest early
   DynamicsParams& d = p.dynamics;
   d.mode = c.mode;
   d.alpha = c.alpha;

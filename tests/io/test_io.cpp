@@ -8,6 +8,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <random>
 
 #include "hpcm/io.hpp"
@@ -101,6 +102,14 @@ Model model_from(const Volume& v) {
   m.tissue.resize(v.size());
   for (std::size_t i = 0; i < v.size(); ++i) m.tissue[i] = static_cast<std::uint8_t>(t.classify(v.hu[i]));
   return m;
+}
+
+// An Input around a synthetic stored volume (no file), and the model of its lattice.
+io::Input input_of(const Volume& stored, int f = 1, std::optional<io::Box> roi = {}) {
+  io::InputOptions opt;
+  opt.downsample = f;
+  opt.roi = roi;
+  return io::prepare_input(stored, opt, "synthetic");
 }
 
 std::vector<Vec3> rest_positions(const Model& m) {
@@ -286,10 +295,12 @@ TEST(Writer, OverwriteIsAtomicAndUnknownExtensionRejected) {
 
 TEST(Export, DisplacementFieldSignAndMillimetres) {
   Scratch s;
-  Model m;
-  m.dims = {6, 5, 4};
-  m.spacing = {2.0, 3.0, 4.0};
-  m.origin = {-5, 7, 11};
+  Volume v = make_volume({6, 5, 4}, true);
+  v.spacing = {2.0, 3.0, 4.0};
+  v.origin = {-5, 7, 11};
+  v.direction = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+  const io::Input in = input_of(v);
+  const Model m = model_from(in.lattice);
   std::vector<Vec3> pos = rest_positions(m);
   // Known synthetic deformation: element (x,y,z) moves by (0.5, -1.0 - 0.1 z, 0.25 x) lattice units
   // (anterior is -y: the y component pulls towards the front).
@@ -299,7 +310,7 @@ TEST(Export, DisplacementFieldSignAndMillimetres) {
   }
   for (const std::string ext : {".nii.gz", ".nii", ".nrrd"}) {
     const std::string path = s / ("disp" + ext);
-    io::write_displacement_field(m, pos, path);
+    io::write_displacement_field(in, m, pos, path);
     const auto raw = io::detail::read_raw_image(path);
     EXPECT_EQ(raw.components, 3) << ext;
     EXPECT_EQ(raw.component_type, "float") << ext;
@@ -316,14 +327,89 @@ TEST(Export, DisplacementFieldSignAndMillimetres) {
       ASSERT_NEAR(raw.data[3 * i + 2], 0.25 * c.x * 4.0, 1e-5) << ext;
     }
   }
-  // A rotated/flipped lattice: vectors are physical (direction applied).
-  m.direction = {-1, 0, 0, 0, 1, 0, 0, 0, 1};
-  io::write_displacement_field(m, pos, s / "flip.nrrd");
-  const auto raw = io::detail::read_raw_image(s / "flip.nrrd");
-  EXPECT_NEAR(raw.data[0], -1.0, 1e-5);
-  expect_error([&] { io::write_displacement_field(m, pos, s / "disp.nhdr"); }, "disp.nhdr", "unsupported extension");
+  // 3D Slicer reads the NRRD key telling that the field moves rest positions (modeling).
+  std::ifstream nrrd(s / "disp.nrrd", std::ios::binary);
+  std::string header(2000, '\0');
+  nrrd.read(header.data(), std::streamsize(header.size()));
+  EXPECT_NE(header.find("\ndisplacement field type:=modeling\n"), std::string::npos) << header.substr(0, 600);
+  expect_error([&] { io::write_displacement_field(in, m, pos, s / "disp.nhdr"); }, "disp.nhdr", "unsupported extension");
   pos.pop_back();
-  EXPECT_NE(error_of([&] { io::write_displacement_field(m, pos, s / "short.nrrd"); }).find("positions"), std::string::npos);
+  EXPECT_NE(error_of([&] { io::write_displacement_field(in, m, pos, s / "short.nrrd"); }).find("positions"), std::string::npos);
+  // A model that is not this input's lattice is refused, naming both sizes.
+  const Model other = model_from(make_volume({5, 5, 4}, true));
+  const std::string msg = error_of([&] { io::write_displacement_field(in, other, rest_positions(other), s / "x.nrrd"); });
+  EXPECT_NE(msg.find("5x5x4"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("6x5x4"), std::string::npos) << msg;
+}
+
+// A stored volume whose index order is not LPS: axis 0 runs right (-L), axis 1 superior, axis 2
+// posterior. Every export must come back in exactly this order and geometry.
+Volume permuted_stored_volume(Int3 dims) {
+  Volume v = make_volume(dims, true, 11);
+  v.spacing = {2.0, 3.0, 1.5};
+  v.origin = {10, 20, 30};
+  v.direction = {-1, 0, 0, /**/ 0, 0, 1, /**/ 0, 1, 0};
+  return v;
+}
+
+TEST(Export, PermutedInputExportsComeBackInItsOwnOrder) {
+  Scratch s;
+  const Volume stored = permuted_stored_volume({9, 7, 11});
+  for (int f : {1, 2, 3}) {
+    SCOPED_TRACE("f = " + std::to_string(f));
+    const io::Input in = input_of(stored, f);
+    EXPECT_EQ(in.order.axis, (std::array<int, 3>{0, 2, 1}));
+    EXPECT_EQ(in.order.reversed, (std::array<bool, 3>{true, false, false}));
+    EXPECT_EQ(in.lattice.dims, (Int3{9 / f, 11 / f, 7 / f}));
+    EXPECT_EQ(in.left_out, (Int3{9 % f, 7 % f, 11 % f}));
+    // The lattice grid is the stored grid coarsened by f in the stored order, computed here
+    // independently: downsample the stored volume itself.
+    const Volume coarse = f == 1 ? stored : downsample(stored, f);
+    const Model m = model_from(in.lattice);
+    io::write_label_map(in, m, s / "labels.nrrd");
+    const auto raw = io::detail::read_raw_image(s / "labels.nrrd");
+    Volume rv;
+    rv.dims = raw.geometry.dims;
+    rv.spacing = raw.geometry.spacing;
+    rv.origin = raw.geometry.origin;
+    rv.direction = raw.geometry.direction;
+    rv.hu.assign(raw.data.size(), 0);
+    expect_same_geometry(coarse, rv, 1e-9);
+    const TissueThresholds t;
+    for (std::size_t i = 0; i < coarse.hu.size(); ++i)
+      ASSERT_EQ(raw.data[i], float(static_cast<int>(t.classify(coarse.hu[i])))) << "stored voxel " << i;
+    // A rigid shift of the lattice: the same physical vector everywhere, on the coarse grid.
+    std::vector<Vec3> pos = rest_positions(m);
+    for (auto& p : pos) p = p + Vec3{0.5f, -1.0f, 0.25f};
+    const std::vector<float> u = io::displacement_on_input_grid(in, m, pos);
+    ASSERT_EQ(u.size(), coarse.hu.size() * 3);
+    const double expect[3] = {0.5 * in.lattice.spacing[0] * in.lattice.direction[0],
+                              -1.0 * in.lattice.spacing[1] * in.lattice.direction[4],
+                              0.25 * in.lattice.spacing[2] * in.lattice.direction[8]};
+    for (std::size_t i = 0; i < coarse.hu.size(); ++i)
+      for (int c = 0; c < 3; ++c) ASSERT_NEAR(u[3 * i + c], expect[c], 1e-5);
+    // Undeformed: the deformed CT is the stored volume itself, voxel for voxel.
+    io::write_deformed_volume(in, m, rest_positions(m), s / "deformed.nii.gz");
+    const auto d = io::detail::read_raw_image(s / "deformed.nii.gz");
+    EXPECT_EQ(d.geometry.dims, stored.dims);
+    ASSERT_EQ(d.data.size(), stored.hu.size());
+    for (std::size_t i = 0; i < stored.hu.size(); ++i) ASSERT_EQ(d.data[i], stored.hu[i]) << "stored voxel " << i;
+  }
+}
+
+TEST(Export, RoiTakesTheStoredIndices) {
+  const Volume stored = permuted_stored_volume({9, 7, 11});
+  const io::Input in = input_of(stored, 1, io::Box{{1, 2, 3}, {8, 6, 10}});
+  EXPECT_EQ(in.stored.dims, (Int3{7, 4, 7}));
+  for (int k = 0; k < 7; ++k)
+    for (int j = 0; j < 4; ++j)
+      for (int i = 0; i < 7; ++i) ASSERT_EQ(in.stored.at(i, j, k), stored.at(i + 1, j + 2, k + 3));
+  const auto o = stored.index_to_physical(1, 2, 3);
+  for (int a = 0; a < 3; ++a) EXPECT_NEAR(in.stored.origin[a], o[a], 1e-9);
+  const std::string msg = error_of([&] { input_of(stored, 1, io::Box{{0, 0, 0}, {10, 7, 11}}); });
+  EXPECT_NE(msg.find("file axis 0"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("<= 9"), std::string::npos) << msg;
+  EXPECT_NE(error_of([&] { input_of(stored, 8); }).find("downsample factor 8 is out of range [1, 7]"), std::string::npos);
 }
 
 TEST(Export, UndeformedLatticeResamplesToTheInputExactly) {
@@ -375,8 +461,9 @@ TEST(Export, DeformedVolumeFollowsTheDisplacement) {
 
 TEST(Export, LabelMapWithSlicerColourTable) {
   Scratch s;
-  const Model m = model_from(make_volume({8, 7, 6}, true));
-  io::write_label_map(m, s / "labels.nii.gz");
+  const io::Input in = input_of(make_volume({8, 7, 6}, true));
+  const Model m = model_from(in.lattice);
+  io::write_label_map(in, m, s / "labels.nii.gz");
   const auto raw = io::detail::read_raw_image(s / "labels.nii.gz");
   EXPECT_EQ(raw.component_type, "unsigned_char");
   ASSERT_EQ(raw.data.size(), m.tissue.size());
@@ -448,9 +535,9 @@ TEST(BadInput, VectorAndRgbImages) {
   write_nrrd(s / "rgb.nrrd", "uchar", {3, 4, 4, 4}, "kinds: RGB-color domain domain domain\n", rgb.data(), rgb.size());
   expect_error([&] { io::read_volume(s / "rgb.nrrd"); }, s / "rgb.nrrd", "components");
   // An exported displacement field is not a CT.
-  Model m;
-  m.dims = {4, 4, 4};
-  io::write_displacement_field(m, rest_positions(m), s / "field.nii.gz");
+  const io::Input in = input_of(make_volume({4, 4, 4}, true));
+  const Model m = model_from(in.lattice);
+  io::write_displacement_field(in, m, rest_positions(m), s / "field.nii.gz");
   expect_error([&] { io::read_volume(s / "field.nii.gz"); }, s / "field.nii.gz", "components");
 }
 

@@ -7,7 +7,7 @@
 #include <random>
 #include <vector>
 
-#include "hpcm/backend.hpp"
+#include "hpcm/backend_factory.hpp"
 #include "hpcm/model.hpp"
 #include "hpcm/params.hpp"
 #include "hpcm/state.hpp"

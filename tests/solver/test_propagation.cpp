@@ -5,7 +5,7 @@
 #include <random>
 #include <sstream>
 
-#include "hpcm/backend.hpp"
+#include "hpcm/backend_factory.hpp"
 #include "hpcm/state.hpp"
 #include "solver/reference/dijkstra.hpp"
 #include "solver_test_util.hpp"
@@ -292,7 +292,7 @@ Model bar_model() {
 }
 
 void expect_bar_rigid(const Model& m, const std::vector<Vec3>& pos, Vec3 pull, const std::string& what) {
-  const LinkLimits bone = m.link[0][m.index(kBarLo, 4, 4)];
+  const LinkLimits bone = m.link(0, m.index(kBarLo, 4, 4));
   ASSERT_LT(bone.max_d - 1.0f, 0.01f) << "the bar must be stiff (bone tau)";
   float worst = 0;
   for (int x = kBarLo; x < kBarHi; ++x) worst = std::max(worst, reference::link_violation(m, m.index(x, 4, 4), 0, pos));

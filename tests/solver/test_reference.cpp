@@ -23,8 +23,8 @@ std::vector<Vec3> rest_positions(const Model& m) { return State::rest(m).pos; }
 TEST(DijkstraReference, ChainStretchEachLinkAbsorbsTau) {
   const Model m = build_model(test::make_volume({12, 1, 1}, [](int, int, int) { return 0.0f; }),
                               test::uniform_params(0.1f, 0.3f));
-  ASSERT_NEAR(m.link[0][0].max_d, 1.1f, 1e-6f);
-  ASSERT_NEAR(m.link[0][0].min_d, 0.92f, 1e-6f);
+  ASSERT_NEAR(m.link(0, 0).max_d, 1.1f, 1e-6f);
+  ASSERT_NEAR(m.link(0, 0).min_d, 0.92f, 1e-6f);
   std::vector<Vec3> pos = rest_positions(m);
   DijkstraPropagator d(m);
   const Index reached = d.run(pos, {11}, {Vec3{11.8f, 0, 0}});

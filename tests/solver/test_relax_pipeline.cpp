@@ -97,13 +97,16 @@ constexpr int kReturnFrames = 60;  // stated bound, documented in docs/solver.md
 Model two_tissue_cube(const Params& p) {
   return build_model(test::make_volume({16, 16, 16}, [](int x, int, int) { return x < 8 ? 50.0f : -100.0f; }), p);
 }
+// A pull of 1 cell toward the anchored border 6 cells away: within what the soft tissue
+// between them can compress (a 2-cell pull is not, and is limited to about 1.2 cells).
 void pull_and_release(Simulation& sim) {
   sim.grab(sim.model().index(8, 8, 8), 1.5f);
   for (int f = 1; f <= 10; ++f) {
-    sim.move_tool(Vec3{0.0f, -0.2f * f, 0.0f});
+    sim.move_tool(Vec3{0.0f, -0.1f * f, 0.0f});
+    ASSERT_FALSE(sim.tool_limited()) << "frame " << f;
     sim.step();
   }
-  ASSERT_GT(max_rest_distance(sim.model(), sim.state()), 1.5f);
+  ASSERT_GT(max_rest_distance(sim.model(), sim.state()), 0.9f);
   sim.release();
 }
 

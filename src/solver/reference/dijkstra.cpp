@@ -18,10 +18,10 @@ int neighbours(const Model& m, Index e, Neighbour out[6]) {
   for (int a = 0; a < 3; ++a) {
     if (cc[a] > 0) {  // n = e - unit_a: e on the + side, link stored at n
       const Index n = e - stride[a];
-      out[k++] = {n, a, true, m.link[a][static_cast<std::size_t>(n)]};
+      out[k++] = {n, a, true, m.link(a, n)};
     }
     if (cc[a] < d[a] - 1) {  // n = e + unit_a: e on the - side, link stored at e
-      out[k++] = {e + stride[a], a, false, m.link[a][static_cast<std::size_t>(e)]};
+      out[k++] = {e + stride[a], a, false, m.link(a, e)};
     }
   }
   return k;
@@ -32,7 +32,7 @@ inline bool key_less(float ta, Index a, float tb, Index b) { return ta < tb || (
 }  // namespace
 
 Vec3 clamp_against(const Vec3& p0, const Neighbour* nb, int count, const bool* use, const std::vector<Vec3>& pos,
-                   const std::vector<float>& time) {
+                   const std::vector<float>& time, const solver::Wall& wall) {
   int earliest = -1;
   for (int k = 0; k < count; ++k) {
     if (!use[k]) continue;
@@ -43,7 +43,7 @@ Vec3 clamp_against(const Vec3& p0, const Neighbour* nb, int count, const bool* u
   if (earliest < 0) return p0;
   Vec3 out = p0;
   for (int b = 0; b < 3; ++b) {
-    float lo = -kInf, hi = kInf;
+    float lo = wall.lo[b], hi = wall.hi[b];  // the boundary box is one more box
     for (int k = 0; k < count; ++k) {
       if (!use[k]) continue;
       const Interval iv = link_interval(nb[k].L, nb[k].axis, nb[k].e_plus, pos[static_cast<std::size_t>(nb[k].n)], b);
@@ -57,19 +57,19 @@ Vec3 clamp_against(const Vec3& p0, const Neighbour* nb, int count, const bool* u
         out[b] = 0.5f * (lo + hi);
         continue;
       }
-      // Truly empty intersection on this axis: the earliest neighbour's box wins.
+      // Truly empty intersection on this axis: the earliest neighbour's box wins, inside the wall.
       const Neighbour& f = nb[earliest];
       const Interval iv = link_interval(f.L, f.axis, f.e_plus, pos[static_cast<std::size_t>(f.n)], b);
-      lo = iv.lo;
-      hi = iv.hi;
+      out[b] = std::min(std::max(std::min(std::max(p0[b], iv.lo), iv.hi), wall.lo[b]), wall.hi[b]);
+      continue;
     }
     out[b] = std::min(std::max(p0[b], lo), hi);
   }
   return out;
 }
 
-DijkstraPropagator::DijkstraPropagator(const Model& m)
-    : m_(m), time_(static_cast<std::size_t>(m.size()), kInf), final_(static_cast<std::size_t>(m.size()), 0) {}
+DijkstraPropagator::DijkstraPropagator(const Model& m, const solver::Wall& wall)
+    : m_(m), wall_(wall), time_(static_cast<std::size_t>(m.size()), kInf), final_(static_cast<std::size_t>(m.size()), 0) {}
 
 Index DijkstraPropagator::run(std::vector<Vec3>& pos, const std::vector<Index>& fixed,
                               const std::vector<Vec3>& targets) {
@@ -119,7 +119,7 @@ Index DijkstraPropagator::run(std::vector<Vec3>& pos, const std::vector<Index>& 
       use[k] = final_[n] && key_less(time_[n], nb[k].n, top.c, top.e);
     }
     const Vec3 p0 = pos[e];  // a non-final element still sits at its wave-start position
-    const Vec3 q = clamp_against(p0, nb, cnt, use, pos, time_);
+    const Vec3 q = clamp_against(p0, nb, cnt, use, pos, time_, wall_);
     if (q == p0) continue;  // not moved: it may be pushed again by a later neighbour
     pos[e] = q;
     time_[e] = top.c;
@@ -136,7 +136,7 @@ Index DijkstraPropagator::run(std::vector<Vec3>& pos, const std::vector<Index>& 
 }
 
 ReferenceWave dijkstra_propagate(const Model& m, const std::vector<Vec3>& p0, const std::vector<std::uint8_t>& flags,
-                                 const std::vector<Vec3>& targets) {
+                                 const std::vector<Vec3>& targets, const solver::Wall& wall) {
   const std::size_t n = static_cast<std::size_t>(m.size());
   if (p0.size() != n || flags.size() != n || targets.size() != n)
     throw Error("dijkstra_propagate: p0, flags and targets need one entry per element (" + std::to_string(n) + ")");
@@ -147,7 +147,7 @@ ReferenceWave dijkstra_propagate(const Model& m, const std::vector<Vec3>& p0, co
       fixed.push_back(static_cast<Index>(i));
       tg.push_back(targets[i]);
     }
-  DijkstraPropagator prop(m);
+  DijkstraPropagator prop(m, wall);
   ReferenceWave w;
   w.pos = p0;
   w.reached = prop.run(w.pos, fixed, tg);
@@ -156,7 +156,7 @@ ReferenceWave dijkstra_propagate(const Model& m, const std::vector<Vec3>& p0, co
 }
 
 RuleResult evaluate_rule(const Model& m, Index e, const std::vector<Vec3>& p0, const std::vector<Vec3>& pos,
-                         const std::vector<float>& time) {
+                         const std::vector<float>& time, const solver::Wall& wall) {
   Neighbour nb[6];
   const int cnt = neighbours(m, e, nb);
   float cand[6];
@@ -175,7 +175,7 @@ RuleResult evaluate_rule(const Model& m, Index e, const std::vector<Vec3>& p0, c
   bool use[6];
   for (int j = 0; j < nc; ++j) {
     for (int k = 0; k < cnt; ++k) use[k] = key_less(time[static_cast<std::size_t>(nb[k].n)], nb[k].n, cand[j], e);
-    const Vec3 q = clamp_against(q0, nb, cnt, use, pos, time);
+    const Vec3 q = clamp_against(q0, nb, cnt, use, pos, time, wall);
     if (!(q == q0)) return {cand[j], q};
   }
   return {kInf, q0};
@@ -183,7 +183,7 @@ RuleResult evaluate_rule(const Model& m, Index e, const std::vector<Vec3>& p0, c
 
 float link_violation(const Model& m, Index i, int a, const std::vector<Vec3>& pos) {
   const Index stride = a == 0 ? 1 : a == 1 ? m.dims.x : static_cast<Index>(m.dims.x) * m.dims.y;
-  const LinkLimits& L = m.link[a][static_cast<std::size_t>(i)];
+  const LinkLimits& L = m.link(a, i);
   const Vec3 d = pos[static_cast<std::size_t>(i + stride)] - pos[static_cast<std::size_t>(i)];
   float v = std::max({0.0f, L.min_d - d[a], d[a] - L.max_d});
   for (int b = 0; b < 3; ++b)

@@ -1,7 +1,7 @@
 #pragma once
 // Sequential Dijkstra-order reference of the timestamped HP-ChainMail propagation (SPEC §4).
 // Single-threaded, deliberately plain: used by the test suite to check the parallel solver
-// (src/solver/propagate.cpp) and by the benchmark. Never used by the pipeline.
+// (src/cpu/chainmail_propagate.cpp) and by the benchmark. Never used by the pipeline.
 //
 // The rule (docs/solver.md, "Propagation rule"), per non-FIXED element e with start
 // position p0:
@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "hpcm/model.hpp"
+#include "solver/rules.hpp"
 
 namespace hpcm::reference {
 
@@ -53,9 +54,9 @@ struct Neighbour {
 int neighbours(const Model& m, Index e, Neighbour out[6]);
 
 /// clamp(p0, S) of the rule for the neighbours nb[k] with use[k] set, at positions pos and
-/// keys (time, index). Returns p0 when no neighbour is used.
+/// keys (time, index), inside the boundary box `wall`. Returns p0 when no neighbour is used.
 Vec3 clamp_against(const Vec3& p0, const Neighbour* nb, int count, const bool* use, const std::vector<Vec3>& pos,
-                   const std::vector<float>& time);
+                   const std::vector<float>& time, const solver::Wall& wall);
 
 /// The Dijkstra-order wave: pop the smallest tentative key (c, e); skip if e is final;
 /// clamp p0 against the final neighbours with a smaller key; if that moves e, e becomes
@@ -64,7 +65,8 @@ Vec3 clamp_against(const Vec3& p0, const Neighbour* nb, int count, const bool* u
 /// resets its own buffers lazily, so a wave costs what it touches, not the lattice size.
 class DijkstraPropagator {
  public:
-  explicit DijkstraPropagator(const Model& m);
+  /// `wall`: the boundary box (solver::make_wall; the default is unbounded).
+  explicit DijkstraPropagator(const Model& m, const solver::Wall& wall = {});
   /// One wave. `fixed` are the sources (t = 0), `targets[k]` the position of fixed[k].
   /// Returns the number of non-FIXED elements the wave moved.
   Index run(std::vector<Vec3>& pos, const std::vector<Index>& fixed, const std::vector<Vec3>& targets);
@@ -82,6 +84,7 @@ class DijkstraPropagator {
     bool operator()(const Entry& a, const Entry& b) const { return a.c > b.c || (a.c == b.c && a.e > b.e); }
   };
   const Model& m_;
+  solver::Wall wall_;
   std::vector<float> time_;
   std::vector<std::uint8_t> final_;
   std::vector<Index> touched_;  ///< elements whose time/final changed in the last run
@@ -91,7 +94,7 @@ class DijkstraPropagator {
 
 /// Convenience wrapper: one wave with a fresh propagator.
 ReferenceWave dijkstra_propagate(const Model& m, const std::vector<Vec3>& p0, const std::vector<std::uint8_t>& flags,
-                                 const std::vector<Vec3>& targets);
+                                 const std::vector<Vec3>& targets, const solver::Wall& wall = {});
 
 /// Evaluates the rule directly for one non-FIXED element e, given the final times and
 /// positions of its neighbours: returns e's (time, position). Used by the tests to check
@@ -101,7 +104,7 @@ struct RuleResult {
   Vec3 pos;
 };
 RuleResult evaluate_rule(const Model& m, Index e, const std::vector<Vec3>& p0, const std::vector<Vec3>& pos,
-                         const std::vector<float>& time);
+                         const std::vector<float>& time, const solver::Wall& wall = {});
 
 /// Largest box violation over the links that have an upstream side by the key (t, index):
 /// every link except those between two FIXED (t = 0) or two unreached (t = +inf) elements.

@@ -1,10 +1,11 @@
 #pragma once
-// Gibson's deformation box of one link, shared by the CPU solver, the CUDA kernels, the
-// references and the metrics so that every component tests the same constraint.
+// Gibson's deformation box of one link (SPEC §4), part of the model: shared by the solver
+// rules, both backends, the references and the metrics, so that every component tests the
+// same constraint.
 #include "hpcm/material.hpp"
 #include "hpcm/types.hpp"
 
-namespace hpcm::solver {
+namespace hpcm {
 
 /// Interval on axis b allowed for element e by neighbour n at position pn, where the link
 /// lies along axis a and side = +1 if e = n + unit_a at rest, -1 if e = n - unit_a.
@@ -43,4 +44,4 @@ HPCM_HD inline float link_violation(const Vec3& p_lo, const Vec3& p_hi, const Li
 
 HPCM_HD inline float clampf(float x, float lo, float hi) { return x < lo ? lo : (x > hi ? hi : x); }
 
-}  // namespace hpcm::solver
+}  // namespace hpcm

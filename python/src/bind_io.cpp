@@ -1,0 +1,135 @@
+// Medical-image IO and the exports (hpcm::io, when hpcm was built with ITK). An Input carries
+// the input's own grid and index order; exports and displacement_mm() come back on it.
+#include "bindings.hpp"
+#if defined(HPCM_WITH_ITK)
+#include "hpcm/io.hpp"
+#endif
+
+namespace hpcm::python {
+
+#if defined(HPCM_WITH_ITK)
+namespace {
+
+std::optional<io::Box> roi_from(py::handle roi) {
+  if (roi.is_none()) return std::nullopt;
+  const auto r = roi.cast<std::vector<long long>>();
+  if (r.size() != 6) throw Error("roi must be 6 integers (x0, y0, z0, x1, y1, z1): voxel indices of the input as stored, upper bounds exclusive");
+  for (long long v : r)
+    if (v < 0 || v > 1'000'000'000) throw Error("roi value " + std::to_string(v) + " is out of range [0, 1000000000]");
+  return io::Box{{int(r[0]), int(r[1]), int(r[2])}, {int(r[3]), int(r[4]), int(r[5])}};
+}
+
+io::InputOptions input_options(int downsample, py::handle roi, const std::string& series) {
+  io::InputOptions o;
+  o.downsample = downsample;
+  o.roi = roi_from(roi);
+  o.series_uid = series;
+  return o;
+}
+
+py::dict grid_dict(const io::Grid& g) {
+  py::dict d;
+  d["dims"] = int3_tuple(g.dims);
+  d["spacing"] = py::make_tuple(g.spacing[0], g.spacing[1], g.spacing[2]);
+  d["origin"] = py::make_tuple(g.origin[0], g.origin[1], g.origin[2]);
+  d["direction"] = matrix3(g.direction);
+  return d;
+}
+
+const std::vector<Vec3>& positions_of(Simulation& sim) { return sim.state().pos; }
+
+}  // namespace
+
+void bind_io(py::module_& m) {
+  py::class_<io::Input>(m, "Input", R"(A simulation input and what the exports need to come back to its grid.
+
+stored: the input as stored (cropped to roi), in the file's own index order and geometry.
+lattice: down-sampled and reoriented to LPS index order -- give it to Simulation.
+lattice_grid: the lattice's grid in the file's index order (stored coarsened by downsample).
+order: {"axis", "reversed"}: LPS axis p runs along stored axis axis[p], backwards if reversed[p].)")
+      .def_readonly("source", &io::Input::source)
+      .def_readonly("stored", &io::Input::stored)
+      .def_readonly("lattice", &io::Input::lattice)
+      .def_property_readonly("lattice_grid", [](const io::Input& in) { return grid_dict(in.lattice_grid); })
+      .def_property_readonly("order", [](const io::Input& in) {
+            py::dict d;
+            d["axis"] = py::make_tuple(in.order.axis[0], in.order.axis[1], in.order.axis[2]);
+            d["reversed"] = py::make_tuple(in.order.reversed[0], in.order.reversed[1], in.order.reversed[2]);
+            return d;
+          })
+      .def_readonly("downsample", &io::Input::downsample)
+      .def_property_readonly("roi", [](const io::Input& in) {
+            return py::make_tuple(in.roi.lo.x, in.roi.lo.y, in.roi.lo.z, in.roi.hi.x, in.roi.hi.y, in.roi.hi.z);
+          })
+      .def_property_readonly("left_out", [](const io::Input& in) { return int3_tuple(in.left_out); },
+                             "stored voxels per axis beyond the last complete down-sampling block");
+
+  m.def("read_volume", [](const std::string& path, const std::string& series) {
+        io::ReadOptions o;
+        o.series_uid = series;
+        return io::read_volume(path, o);
+      }, py::arg("path"), py::arg("series") = "", "A volume file or DICOM directory, reoriented to LPS index order.");
+  m.def("read_volume_as_stored", [](const std::string& path, const std::string& series) {
+        io::ReadOptions o;
+        o.series_uid = series;
+        return io::read_volume_as_stored(path, o);
+      }, py::arg("path"), py::arg("series") = "", "A volume file or DICOM directory in the file's own index order.");
+  m.def("write_volume", &io::write_volume, py::arg("volume"), py::arg("path"),
+        "Writes a volume (.nii, .nii.gz, .nrrd, .nhdr, .mha, .mhd) in its own index order and geometry.");
+  m.def("load_input", [](const std::string& path, int downsample, py::handle roi, const std::string& series) {
+        return io::load_input(path, input_options(downsample, roi, series));
+      }, py::arg("path"), py::arg("downsample") = 1, py::arg("roi") = py::none(), py::arg("series") = "",
+      "Reads a CT (file or DICOM directory), crops to roi (x0, y0, z0, x1, y1, z1 in the file's own voxel "
+      "indices, upper bounds exclusive), block-averages by `downsample` in the file's index order and "
+      "reorients to LPS. Returns an Input.");
+  m.def("prepare_input", [](const Volume& stored, int downsample, py::handle roi, const std::string& source) {
+        return io::prepare_input(stored, input_options(downsample, roi, ""), source);
+      }, py::arg("stored"), py::arg("downsample") = 1, py::arg("roi") = py::none(), py::arg("source") = "array",
+      "As load_input, for a Volume given in its own index order (e.g. phantom()).");
+  m.def("list_dicom_series", [](const std::string& dir) {
+        py::list out;
+        for (const auto& s : io::list_dicom_series(dir)) {
+          py::dict d;
+          d["uid"] = s.uid;
+          d["modality"] = s.modality;
+          d["description"] = s.description;
+          d["files"] = s.files;
+          d["rows"] = s.rows;
+          d["columns"] = s.columns;
+          out.append(d);
+        }
+        return out;
+      }, py::arg("directory"));
+
+  m.def("displacement_mm", [](const io::Input& in, Simulation& sim) {
+        std::vector<float> u = io::displacement_on_input_grid(in, sim.model(), positions_of(sim));
+        return lattice_array(std::move(u), in.lattice_grid.dims, 3);
+      }, py::arg("input"), py::arg("simulation"),
+      "Forward displacement X - X0 in millimetres (LPS components) on input.lattice_grid, indexed in the "
+      "input's own order: exactly what write_displacement_field writes.");
+  m.def("write_displacement_field", [](const io::Input& in, Simulation& sim, const std::string& path) {
+        io::write_displacement_field(in, sim.model(), positions_of(sim), path);
+      }, py::arg("input"), py::arg("simulation"), py::arg("path"));
+  m.def("write_label_map", [](const io::Input& in, Simulation& sim, const std::string& path) {
+        io::write_label_map(in, sim.model(), path);
+      }, py::arg("input"), py::arg("simulation"), py::arg("path"));
+  m.def("write_deformed_volume", [](const io::Input& in, Simulation& sim, const std::string& path) {
+        io::write_deformed_volume(in, sim.model(), positions_of(sim), path);
+      }, py::arg("input"), py::arg("simulation"), py::arg("path"));
+  m.def("export_frame", [](const io::Input& in, Simulation& sim, const std::string& folder, const std::string& tag,
+                           bool nrrd_field) {
+        const io::ExportFiles f = io::export_frame(in, sim.model(), positions_of(sim), folder, tag, nrrd_field);
+        py::dict d;
+        d["displacement_nifti"] = f.displacement_nifti;
+        d["displacement_nrrd"] = f.displacement_nrrd.empty() ? py::object(py::none()) : py::object(py::str(f.displacement_nrrd));
+        d["deformed"] = f.deformed;
+        return d;
+      }, py::arg("input"), py::arg("simulation"), py::arg("folder"), py::arg("tag") = "final", py::arg("nrrd") = true,
+      "Writes displacement_<tag>.nii.gz (+ .nrrd) and deformed_<tag><input's extension> into `folder`, "
+      "as `hpcm run --export` does; returns the paths.");
+}
+#else
+void bind_io(py::module_&) {}
+#endif
+
+}  // namespace hpcm::python

@@ -1,0 +1,98 @@
+// Volume (HU + geometry) and the synthetic phantom.
+#include "bindings.hpp"
+
+namespace hpcm::python {
+
+py::array_t<double> matrix3(const std::array<double, 9>& m) {
+  py::array_t<double> a({3, 3});
+  auto r = a.mutable_unchecked<2>();
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) r(i, j) = m[static_cast<std::size_t>(i * 3 + j)];
+  return a;
+}
+
+std::array<double, 9> matrix3_from(py::handle m, const char* what) {
+  const auto a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(m);
+  if (!a || a.ndim() != 2 || a.shape(0) != 3 || a.shape(1) != 3)
+    throw Error(std::string(what) + " must be a 3x3 matrix (rows of numbers)");
+  std::array<double, 9> out{};
+  for (int k = 0; k < 9; ++k) out[static_cast<std::size_t>(k)] = a.data()[k];
+  return out;
+}
+
+namespace {
+
+std::array<double, 3> triple(py::handle v, const char* what) {
+  const auto a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(v);
+  if (!a || a.ndim() != 1 || a.shape(0) != 3) throw Error(std::string(what) + " must be 3 numbers");
+  return {a.data()[0], a.data()[1], a.data()[2]};
+}
+
+Volume volume_from_array(const py::array_t<float, py::array::f_style | py::array::forcecast>& hu, py::handle spacing,
+                         py::handle origin, py::handle direction) {
+  if (hu.ndim() != 3) throw Error("hu must be a 3-D array indexed [x, y, z], got " + std::to_string(hu.ndim()) + " dimensions");
+  Volume v;
+  v.dims = {static_cast<int>(hu.shape(0)), static_cast<int>(hu.shape(1)), static_cast<int>(hu.shape(2))};
+  v.spacing = triple(spacing, "spacing");
+  v.origin = triple(origin, "origin");
+  v.direction = matrix3_from(direction, "direction");
+  v.hu.assign(hu.data(), hu.data() + hu.size());  // Fortran order: x fastest, as hpcm stores it
+  validate_volume(v, "Volume");
+  return v;
+}
+
+}  // namespace
+
+void bind_volume(py::module_& m) {
+  py::class_<Volume>(m, "Volume", R"(A CT volume: HU values and geometry (ITK conventions, LPS millimetres).
+
+Volume(hu, spacing=(1, 1, 1), origin=(0, 0, 0), direction=identity) copies a 3-D array
+indexed [x, y, z]; `direction` columns are the physical directions of the index axes.)")
+      .def(py::init(&volume_from_array), py::arg("hu"), py::arg("spacing") = py::make_tuple(1.0, 1.0, 1.0),
+           py::arg("origin") = py::make_tuple(0.0, 0.0, 0.0),
+           py::arg("direction") = py::make_tuple(py::make_tuple(1.0, 0.0, 0.0), py::make_tuple(0.0, 1.0, 0.0),
+                                                 py::make_tuple(0.0, 0.0, 1.0)))
+      .def_property_readonly("dims", [](const Volume& v) { return int3_tuple(v.dims); }, "voxels per index axis (nx, ny, nz)")
+      .def_property_readonly("spacing", [](const Volume& v) { return py::make_tuple(v.spacing[0], v.spacing[1], v.spacing[2]); },
+                             "mm per voxel along each index axis")
+      .def_property_readonly("origin", [](const Volume& v) { return py::make_tuple(v.origin[0], v.origin[1], v.origin[2]); },
+                             "physical position (LPS mm) of voxel (0, 0, 0)")
+      .def_property_readonly("direction", [](const Volume& v) { return matrix3(v.direction); },
+                             "3x3 matrix, column a = physical (LPS) direction of index axis a (a copy)")
+      .def_property_readonly(
+          "hu", [](py::object self) {
+            const Volume& v = self.cast<const Volume&>();
+            return lattice_view(v.hu.data(), v.dims, 1, self, true);
+          },
+          "HU values indexed [x, y, z] (float32, a writable view of the volume's memory, no copy)")
+      .def("index_to_physical", [](const Volume& v, double i, double j, double k) {
+            const auto p = v.index_to_physical(i, j, k);
+            return py::make_tuple(p[0], p[1], p[2]);
+          }, py::arg("i"), py::arg("j"), py::arg("k"), "LPS millimetres of a continuous voxel index")
+      .def("__repr__", [](const Volume& v) {
+        return "<hpcm.Volume " + std::to_string(v.dims.x) + "x" + std::to_string(v.dims.y) + "x" + std::to_string(v.dims.z) +
+               ", spacing " + std::to_string(v.spacing[0]) + " x " + std::to_string(v.spacing[1]) + " x " +
+               std::to_string(v.spacing[2]) + " mm>";
+      });
+
+  m.def("phantom", [](py::handle dims, std::uint64_t seed, float noise_hu) {
+        const auto d = triple(dims, "dims");
+        PhantomOptions o;
+        o.dims = {static_cast<int>(d[0]), static_cast<int>(d[1]), static_cast<int>(d[2])};
+        o.seed = seed;
+        o.noise_hu = noise_hu;
+        return make_phantom(o);
+      },
+      py::arg("dims") = py::make_tuple(128, 128, 75), py::arg("seed") = 1, py::arg("noise_hu") = 12.0f,
+      "The built-in synthetic abdominal phantom (LPS index order), deterministic for given options.");
+
+  m.def("downsample", &downsample, py::arg("volume"), py::arg("factor"),
+        "Block mean over complete factor^3 blocks in the volume's own index order (see docs/io.md).");
+  m.def("tissue_names", [] {
+    py::list names;
+    for (int t = 0; t < kTissueCount; ++t) names.append(tissue_name(t));
+    return py::tuple(names);
+  }, "The tissue classes in label order: ('air', 'skin_fat', 'muscle_organ', 'bone').");
+}
+
+}  // namespace hpcm::python

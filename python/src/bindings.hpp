@@ -1,0 +1,69 @@
+#pragma once
+// Shared pieces of the hpcm Python bindings: the parts that register classes and functions,
+// and numpy arrays over lattice data (x fastest in memory, indexed [x, y, z(, component)]).
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <memory>
+#include <type_traits>
+#include <vector>
+
+#include "hpcm/hpcm.hpp"
+
+namespace py = pybind11;
+
+namespace hpcm::python {
+
+void bind_volume(py::module_& m);
+void bind_params(py::module_& m);
+void bind_simulation(py::module_& m);
+void bind_io(py::module_& m);
+
+static_assert(sizeof(Vec3) == 3 * sizeof(float) && std::is_standard_layout_v<Vec3>, "Vec3 is three packed floats");
+
+/// Shape (nx, ny, nz) or (nx, ny, nz, components) and the strides of data stored x fastest.
+template <class T>
+void lattice_layout(Int3 dims, int components, std::vector<py::ssize_t>& shape, std::vector<py::ssize_t>& strides) {
+  const py::ssize_t e = sizeof(T), c = components;
+  shape = {dims.x, dims.y, dims.z};
+  strides = {c * e, c * e * dims.x, c * e * dims.x * dims.y};
+  if (components > 1) shape.push_back(c), strides.push_back(e);
+}
+
+/// A view (no copy) of lattice data that `owner` keeps alive; read-only unless `writable`.
+template <class T>
+py::array lattice_view(const T* data, Int3 dims, int components, py::handle owner, bool writable = false) {
+  std::vector<py::ssize_t> shape, strides;
+  lattice_layout<T>(dims, components, shape, strides);
+  py::array a(py::dtype::of<T>(), shape, strides, data, owner);
+  if (!writable) a.attr("setflags")(py::arg("write") = false);
+  return a;
+}
+
+/// An array that takes over `values` (moved, not copied).
+template <class T>
+py::array lattice_array(std::vector<T>&& values, Int3 dims, int components) {
+  auto* owned = new std::vector<T>(std::move(values));
+  py::capsule free_when_done(owned, [](void* p) { delete static_cast<std::vector<T>*>(p); });
+  std::vector<py::ssize_t> shape, strides;
+  lattice_layout<T>(dims, components, shape, strides);
+  return py::array(py::dtype::of<T>(), shape, strides, owned->data(), free_when_done);
+}
+
+/// Vec3 buffers as float arrays of 3 components.
+inline py::array vec3_array(std::vector<Vec3>&& v, Int3 dims) {
+  auto* owned = new std::vector<Vec3>(std::move(v));
+  py::capsule free_when_done(owned, [](void* p) { delete static_cast<std::vector<Vec3>*>(p); });
+  std::vector<py::ssize_t> shape, strides;
+  lattice_layout<float>(dims, 3, shape, strides);
+  return py::array(py::dtype::of<float>(), shape, strides, reinterpret_cast<const float*>(owned->data()), free_when_done);
+}
+
+inline py::tuple int3_tuple(Int3 v) { return py::make_tuple(v.x, v.y, v.z); }
+inline py::tuple vec3_tuple(Vec3 v) { return py::make_tuple(v.x, v.y, v.z); }
+/// 3x3 row-major -> numpy (3, 3) (a copy).
+py::array_t<double> matrix3(const std::array<double, 9>& m);
+std::array<double, 9> matrix3_from(py::handle m, const char* what);
+
+}  // namespace hpcm::python

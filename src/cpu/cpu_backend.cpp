@@ -1,0 +1,167 @@
+#include "cpu/cpu_backend.hpp"
+
+#include <algorithm>
+
+namespace hpcm::cpu {
+
+namespace {
+
+/// The link restoration's view of the storage.
+class StorageAccess final : public solver::RestoreAccess {
+ public:
+  explicit StorageAccess(Storage& st) : st_(st) {}
+  Vec3 position(Index i) const override { return st_.position(i); }
+  void set_coordinate(Index i, int axis, float value) override { st_.p[axis][static_cast<std::size_t>(st_.lay.at(i))] = value; }
+  bool fixed(Index i) const override { return (st_.flags[static_cast<std::size_t>(st_.lay.at(i))] & kFixed) != 0; }
+
+ private:
+  Storage& st_;
+};
+
+}  // namespace
+
+void CpuBackend::load(const Model& m, const Params& p, const State& s) {
+  p.validate();
+  if (static_cast<Index>(s.pos.size()) != m.size() || s.vel.size() != s.pos.size() || s.flags.size() != s.pos.size())
+    throw Error("CPU backend: state size does not match the model (" + std::to_string(m.size()) + " elements)");
+  m_ = &m;
+  p_ = p;
+  k_ = dynamics::make_constants(p.dynamics, m.dims);
+  if (!p.solver.sleep) k_.sleep_speed = 0.0f;
+  wall_ = solver::make_wall(m.dims, p.dynamics.margin);
+  st_.load(m, s);
+  grid_.init(m.dims, p.solver.brick_size);
+  const std::size_t nb = static_cast<std::size_t>(grid_.count);
+  touched_.assign(nb, 0);
+  unchecked_.assign(nb, 1);  // a loaded state is checked once
+  // Anything that carries velocity or is off rest must be looked at by the first frame.
+  for (Index i = 0; i < m.size(); ++i)
+    if (!(s.vel[static_cast<std::size_t>(i)] == Vec3{}) || !(s.pos[static_cast<std::size_t>(i)] == m.rest(i)))
+      touched_[static_cast<std::size_t>(grid_.brick_of_index(i))] = 1;
+  hot_ = touched_;
+  fixed_.clear();
+  targets_.clear();
+  const int threads = default_thread_count();
+  if (!pool_ || pool_->threads() != threads) pool_ = std::make_unique<WorkerPool>(threads);
+  propagation_.init(m, grid_);
+  const SimdKernels kernels = select_kernels(forced_kernel_);
+  kernel_name_ = kernels.name;
+  relaxation_.init(grid_, kernels.relax);
+  layer_.init(grid_, kernels.layer);
+  restorer_.init(m);
+}
+
+void CpuBackend::set_params(const Params& p) {
+  p.validate();
+  const bool bricks_changed = p.solver.brick_size != p_.solver.brick_size;
+  p_ = p;
+  k_ = dynamics::make_constants(p.dynamics, m_->dims);
+  if (!p.solver.sleep) k_.sleep_speed = 0.0f;
+  wall_ = solver::make_wall(m_->dims, p.dynamics.margin);
+  mark_all(unchecked_);  // a new margin may put elements outside the wall
+  if (bricks_changed) {
+    State s;
+    download(s);
+    load(*m_, p, s);
+  }
+}
+
+void CpuBackend::set_fixed(const std::vector<Index>& elements, const std::vector<Vec3>& targets,
+                           const std::vector<std::uint8_t>& flags) {
+  if (targets.size() != elements.size() || flags.size() != elements.size())
+    throw Error("set_fixed: elements, targets and flags must have the same length");
+  const Layout& L = st_.lay;
+  for (Index i : fixed_) st_.flags[static_cast<std::size_t>(L.at(i))] = 0;
+  std::vector<Index> old;
+  old.swap(fixed_);
+  fixed_ = elements;
+  targets_ = targets;
+  for (std::size_t k = 0; k < fixed_.size(); ++k) {
+    if (fixed_[k] < 0 || fixed_[k] >= m_->size()) throw Error("set_fixed: element " + std::to_string(fixed_[k]) + " is out of range");
+    st_.flags[static_cast<std::size_t>(L.at(fixed_[k]))] = static_cast<std::uint8_t>(kFixed | flags[k]);
+  }
+  // Elements released from FIXED (grab released) must be relaxed again: mark their bricks.
+  for (Index i : old)
+    if (!(st_.flags[static_cast<std::size_t>(L.at(i))] & kFixed)) {
+      const std::size_t b = static_cast<std::size_t>(grid_.brick_of_index(i));
+      hot_[b] = touched_[b] = 1;
+    }
+}
+
+PropagateStats CpuBackend::propagate() {
+  const Layout& L = st_.lay;
+  for (std::size_t k = 0; k < fixed_.size(); ++k) {
+    const std::size_t e = static_cast<std::size_t>(L.at(fixed_[k]));
+    const Vec3 t = targets_[k];
+    if (!(Vec3{st_.p[0][e], st_.p[1][e], st_.p[2][e]} == t)) {
+      for (int a = 0; a < 3; ++a) st_.p[a][e] = t[a];
+      const std::size_t b = static_cast<std::size_t>(grid_.brick_of_index(fixed_[k]));
+      touched_[b] = hot_[b] = 1;
+    }
+  }
+  const PropagateStats ps =
+      propagation_.run(st_, fixed_, wall_, p_.solver.max_propagation_sweeps, touched_, hot_, *pool_);
+  active_ = static_cast<Index>(std::count(touched_.begin(), touched_.end(), 1));
+  return ps;
+}
+
+RelaxContext CpuBackend::relax_context() {
+  RelaxContext c;
+  c.lay = &st_.lay;
+  for (int a = 0; a < 3; ++a) {
+    c.p[a] = st_.p[a].data();
+    c.link_tau[a] = st_.link_tau[a].data();
+  }
+  c.weight = st_.weight.data();
+  c.flags = st_.flags.data();
+  c.time = st_.time.data();
+  c.model = m_;
+  c.wall = wall_;
+  c.threshold = p_.solver.relax_threshold;
+  c.omega = p_.solver.relax_omega;
+  return c;
+}
+
+RelaxStats CpuBackend::relax(int sweeps) {
+  if (!p_.solver.sleep) mark_all(hot_);  // every brick awake: the exact reference
+  Index active = 0;
+  const RelaxStats rs = relaxation_.run(relax_context(), sweeps, hot_, touched_, *pool_, active);
+  active_ = std::max(active_, active);
+  return rs;
+}
+
+RestoreStats CpuBackend::restore_links() {
+  RestoreStats rs;
+  for (std::size_t b = 0; b < unchecked_.size(); ++b) unchecked_[b] |= touched_[b];
+  if (!p_.solver.sleep) mark_all(unchecked_);
+  grid_.dilate_to_list(unchecked_, check_list_);
+  std::fill(unchecked_.begin(), unchecked_.end(), 0);
+  if (check_list_.empty()) return rs;
+  StorageAccess access(st_);
+  seeds_.clear();
+  check_.run(st_, grid_, check_list_, wall_, seeds_, rs, *pool_);
+  if (seeds_.empty()) return rs;
+  std::vector<std::uint8_t> moved(touched_.size(), 0);
+  restorer_.restore(*m_, grid_, seeds_, access, wall_, moved, rs);
+  // Bricks the restoration moved are touched (the velocity layer visits them); relaxation
+  // looks at them again next frame.
+  for (std::size_t b = 0; b < moved.size(); ++b)
+    if (moved[b]) touched_[b] = hot_[b] = 1;
+  return rs;
+}
+
+void CpuBackend::velocity_layer(SpeedStats* speeds) {
+  layer_.apply(st_, k_, !p_.solver.sleep, touched_, hot_, unchecked_, speeds, *pool_);
+  active_ = std::max(active_, layer_.last_bricks());
+}
+
+void CpuBackend::mark(int slot) {
+  if (slot == 0) active_ = 0;
+  marks_[slot] = std::chrono::steady_clock::now();
+}
+
+double CpuBackend::elapsed_ms(int a, int b) {
+  return std::chrono::duration<double, std::milli>(marks_[b] - marks_[a]).count();
+}
+
+}  // namespace hpcm::cpu

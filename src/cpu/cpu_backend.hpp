@@ -1,0 +1,80 @@
+#pragma once
+// The CPU backend: HP-ChainMail and the velocity layer over the half-split element storage
+// (cpu/storage.hpp), from the shared rules of src/solver and src/dynamics, on the backend's
+// own threads (cpu/worker_pool.hpp).
+//
+// Work follows motion. Per brick it tracks what changed: `touched` (positions changed by the
+// ChainMail stage this frame: the velocity layer must visit), `hot` (relaxation must look at it
+// and its face neighbours), `unchecked` (positions changed since the last link check). A brick
+// that none of these mark and that carries no velocity sleeps: it costs nothing, and wakes when
+// the wave, a relaxation sweep next door or the tool reaches it. X- is kept equal to X between
+// frames by the layer's fused frame-end snapshot, so snapshot() has nothing left to copy.
+#include <chrono>
+#include <memory>
+
+#include "cpu/layer.hpp"
+#include "cpu/link_check.hpp"
+#include "cpu/propagate.hpp"
+#include "cpu/relax.hpp"
+#include "cpu/storage.hpp"
+#include "cpu/worker_pool.hpp"
+#include "hpcm/backend.hpp"
+#include "solver/link_restore.hpp"
+
+namespace hpcm::cpu {
+
+class CpuBackend final : public Backend {
+ public:
+  BackendKind kind() const override { return BackendKind::Cpu; }
+  void load(const Model& m, const Params& p, const State& s) override;
+  void set_params(const Params& p) override;
+  void set_fixed(const std::vector<Index>& elements, const std::vector<Vec3>& targets,
+                 const std::vector<std::uint8_t>& flags) override;
+  void snapshot() override {}
+  PropagateStats propagate() override;
+  RelaxStats relax(int sweeps) override;
+  RestoreStats restore_links() override;
+  void velocity_layer(SpeedStats* speeds) override;
+  Index active_bricks() const override { return active_; }
+  void mark(int slot) override;
+  double elapsed_ms(int from_slot, int to_slot) override;
+  void download(State& s) override { st_.store_state(s); }
+  void download_positions(std::vector<Vec3>& pos) override { st_.store_positions(pos); }
+  Vec3 position(Index i) override { return st_.position(i); }
+
+  /// The SIMD kernels in use ("avx2" or "sse2").
+  const char* kernels() const { return kernel_name_; }
+  /// Forces the SIMD kernels ("sse2", "avx2"; empty: the best this CPU runs) from the next
+  /// load() on. For tests and benchmarks.
+  void force_kernels(const std::string& name) { forced_kernel_ = name; }
+  int threads() const { return pool_ ? pool_->threads() : 1; }
+  /// Bytes per element of the backend's arrays (the model's table and per-brick data excluded).
+  static std::size_t bytes_per_element() { return Storage::bytes_per_element(); }
+
+ private:
+  RelaxContext relax_context();
+  void mark_all(std::vector<std::uint8_t>& flags) { std::fill(flags.begin(), flags.end(), 1); }
+
+  const Model* m_ = nullptr;
+  Params p_;
+  dynamics::LayerConstants k_{};
+  solver::Wall wall_;
+  Storage st_;
+  solver::BrickGrid grid_;
+  std::vector<Index> fixed_;
+  std::vector<Vec3> targets_;
+  std::vector<std::uint8_t> touched_, hot_, unchecked_;
+  std::unique_ptr<WorkerPool> pool_;
+  Propagation propagation_;
+  Relaxation relaxation_;
+  VelocityLayer layer_;
+  LinkCheck check_;
+  solver::LinkRestorer restorer_;
+  std::vector<Index> check_list_, seeds_;
+  std::string forced_kernel_;
+  const char* kernel_name_ = "";
+  Index active_ = 0;
+  std::chrono::steady_clock::time_point marks_[8];
+};
+
+}  // namespace hpcm::cpu

@@ -1,0 +1,120 @@
+#pragma once
+// The velocity layer over one row, N elements at a time (included by simd_sse2.cpp and
+// simd_avx2.cpp). Lane by lane these are the floating-point operations of
+// dynamics::velocity_update in the same order, with its branches as lane masks: FIXED,
+// massless or condition A; the dead zone on |dX|; simple or viscoelastic update; the magnitude
+// clamp or the rest threshold; the position step; the boundary clamp. The speeds for the
+// report are then added in element order, so every path gives the same sums.
+#include <cmath>
+
+#include "cpu/kernels.hpp"
+#include "cpu/simd.hpp"
+#include "hpcm/state.hpp"
+
+namespace hpcm::cpu::simd {
+
+/// Per-lane value of a per-tissue constant (t in 0..3).
+template <class V>
+inline V by_tissue(Mask<V> t, const float (&c)[4]) {
+  return t == 0 ? splat<V>(c[0]) : (t == 1 ? splat<V>(c[1]) : (t == 2 ? splat<V>(c[2]) : splat<V>(c[3])));
+}
+
+template <class V>
+inline V norm3(V a, V b, V c) {
+  return vsqrt<V>(a * a + b * b + c * c);
+}
+
+template <class V>
+void layer_row(Storage& st, const dynamics::LayerConstants& k, const LayerRow& r, SpeedStats* speeds) {
+  constexpr int N = sizeof(V) / sizeof(float);
+  using M = Mask<V>;
+  const Layout& L = st.lay;
+  const Index k0 = L.row_start(r.h, r.y, r.z);
+  const V zero = splat<V>(0.0f);
+  const V fy = splat<V>(static_cast<float>(r.y)), fz = splat<V>(static_cast<float>(r.z));
+  const V alpha = splat<V>(k.alpha), one_b0 = splat<V>(1.0f + k.b0), dead_zone = splat<V>(k.dead_zone);
+  const V v_max = splat<V>(k.v_max), sleep = splat<V>(k.sleep_speed), beta = splat<V>(k.beta);
+  V lane;
+  for (int l = 0; l < N; ++l) lane[l] = static_cast<float>(l);
+  for (int j = r.j0; j < r.j1; j += N) {
+    const Index e = k0 + j;
+    const int count = std::min(N, r.j1 - j);
+    const M in_row = lane < splat<V>(static_cast<float>(count));
+    const M t = load_bytes<V>(st.tissue.data() + e);
+    const M fixed = (load_bytes<V>(st.flags.data() + e) & static_cast<int>(kFixed)) != 0;
+    V post[3], pre[3], v[3];
+    for (int a = 0; a < 3; ++a) {
+      post[a] = load<V>(st.p[a].data() + e);
+      pre[a] = load<V>(st.q[a].data() + e);
+      v[a] = load<V>(st.v[a].data() + e);
+    }
+    // 1. FIXED / massless (bone), and condition A: no dynamics.
+    const M dynamic = ~fixed & (by_tissue<V>(t, k.inv_mass) != zero) & (k.mode != 0 ? M{} - 1 : M{});
+    // 2. intra-frame ChainMail correction, with its dead zone.
+    V dx[3];
+    for (int a = 0; a < 3; ++a) dx[a] = post[a] - pre[a];
+    const M dead = norm3<V>(dx[0], dx[1], dx[2]) < dead_zone;
+    for (int a = 0; a < 3; ++a) dx[a] = dead ? zero : dx[a];
+    const V s = by_tissue<V>(t, k.s);  // 3. response scale
+    V nv[3];
+    if (k.mode == 1) {  // 4. simple (B)
+      for (int a = 0; a < 3; ++a) nv[a] = alpha * v[a] + s * dx[a];
+    } else {  // viscoelastic (C)
+      V vt[3];
+      for (int a = 0; a < 3; ++a) vt[a] = v[a] + s * dx[a];
+      const V fx = splat<V>(static_cast<float>(r.h)) + splat<V>(2.0f) * (lane + splat<V>(static_cast<float>(j)));
+      const V denom = one_b0 + by_tissue<V>(t, k.b1) * norm3<V>(pre[0] - fx, pre[1] - fy, pre[2] - fz);
+      for (int a = 0; a < 3; ++a) nv[a] = vt[a] / denom;
+    }
+    // 5. magnitude clamp keeping the direction, or rest below the sleep speed.
+    const V speed = norm3<V>(nv[0], nv[1], nv[2]);
+    const M fast = speed > v_max;
+    const V f = v_max / speed;
+    const M rest = ~fast & (speed < sleep);
+    for (int a = 0; a < 3; ++a) nv[a] = fast ? nv[a] * f : (rest ? zero : nv[a]);
+    // 6. position update.
+    const V g = beta * by_tissue<V>(t, k.rho);
+    V out[3];
+    for (int a = 0; a < 3; ++a) {
+      nv[a] = dynamic ? nv[a] : zero;
+      const V x = dynamic ? post[a] + g * nv[a] : post[a];
+      // 7. boundary clamp.
+      const V lo = splat<V>(k.lo[a]), hi = splat<V>(k.hi[a]);
+      out[a] = x < lo ? lo : (x > hi ? hi : x);
+    }
+    if (count == N) {
+      for (int a = 0; a < 3; ++a) {
+        store<V>(st.v[a].data() + e, nv[a]);
+        store<V>(st.p[a].data() + e, out[a]);
+        store<V>(st.q[a].data() + e, out[a]);  // frame-end snapshot: next frame's X-
+      }
+    } else {
+      for (int l = 0; l < count; ++l)
+        for (int a = 0; a < 3; ++a) {
+          st.v[a][static_cast<std::size_t>(e + l)] = nv[a][l];
+          st.p[a][static_cast<std::size_t>(e + l)] = out[a][l];
+          st.q[a][static_cast<std::size_t>(e + l)] = out[a][l];
+        }
+    }
+    const M has_v = (nv[0] != zero) | (nv[1] != zero) | (nv[2] != zero);
+    const M changed = (out[0] != post[0]) | (out[1] != post[1]) | (out[2] != post[2]);
+    const unsigned with_v = lane_bits<V>(has_v & in_row), moved = lane_bits<V>(changed & in_row);
+    if (with_v | moved)
+      for (int l = 0; l < count; ++l) {
+        const int col = (j + l - r.col_base) / r.col_width;
+        if (with_v >> l & 1u) r.col_velocity[col] = 1;
+        if (moved >> l & 1u) r.col_moved[col] = 1;
+      }
+    if (speeds) {
+      const V sp = norm3<V>(out[0] - pre[0], out[1] - pre[1], out[2] - pre[2]);
+      for (int l = 0; l < count; ++l) {
+        const int tl = t[l];
+        speeds->sum[tl] += sp[l];
+        speeds->max[tl] = std::max(speeds->max[tl], sp[l]);
+        if (sp[l] > 0) ++speeds->moved;
+      }
+    }
+  }
+}
+
+}  // namespace hpcm::cpu::simd

@@ -1,0 +1,26 @@
+#pragma once
+// The CPU's check for the link restoration (what solver::find_violations does, on the storage
+// arrays directly and on the backend's threads): every link with an end in the listed bricks,
+// and every element there against the wall.
+#include <vector>
+
+#include "cpu/storage.hpp"
+#include "cpu/worker_pool.hpp"
+#include "hpcm/stats.hpp"
+#include "solver/bricks.hpp"
+#include "solver/rules.hpp"
+
+namespace hpcm::cpu {
+
+class LinkCheck {
+ public:
+  /// Appends the ends of the violated links (linear indices, ascending, once each) to `seeds`.
+  void run(const Storage& st, const solver::BrickGrid& grid, const std::vector<Index>& bricks, const solver::Wall& wall,
+           std::vector<Index>& seeds, RestoreStats& stats, WorkerPool& pool);
+
+ private:
+  std::vector<std::vector<Index>> found_;
+  std::vector<RestoreStats> partial_;
+};
+
+}  // namespace hpcm::cpu

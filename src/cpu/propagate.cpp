@@ -1,0 +1,149 @@
+#include "cpu/propagate.hpp"
+
+#include <algorithm>
+
+#include "hpcm/state.hpp"
+#include "solver/neighbours.hpp"
+#include "solver/schedule.hpp"
+
+namespace hpcm::cpu {
+
+using namespace solver;
+
+void Propagation::init(const Model& m, const BrickGrid& grid) {
+  m_ = &m;
+  grid_ = grid;
+  final_.assign(static_cast<std::size_t>(m.size()), 0);
+  reached_.clear();
+  buckets_.clear();
+  delta_ = bucket_width(m);
+}
+
+int Propagation::gather(const Storage& st, Index e, Neighbour* nb) const {
+  const Model& m = *m_;
+  const Int3 c = m.coords(e);
+  int count = 0;
+  for_each_face_neighbour(m.dims.x, m.dims.y, m.dims.z, c.x, c.y, c.z, e,
+                          [&](Index n, int axis, int side, Index lo, Index) {
+                            const Index k = st.lay.at(n);
+                            nb[count++] = Neighbour{n, axis, side, m.link(axis, lo), st.time[k],
+                                                    m.tau[static_cast<std::size_t>(n)],
+                                                    Vec3{st.p[0][k], st.p[1][k], st.p[2][k]}};
+                          });
+  return count;
+}
+
+PropagateStats Propagation::run(Storage& st, const std::vector<Index>& fixed, const Wall& wall, int max_sweeps,
+                                std::vector<std::uint8_t>& touched, std::vector<std::uint8_t>& hot, WorkerPool& pool) {
+  const Model& m = *m_;
+  const Layout& L = st.lay;
+  PropagateStats ps;
+  // Forget the previous wave.
+  for (Index i : reached_) {
+    const Index k = L.at(i);
+    st.time[k] = kInf;
+    final_[k] = 0;
+  }
+  reached_.clear();
+  for (auto& b : buckets_) b.clear();
+  const double delta = delta_;
+  auto push_neighbours = [&](Index i, float t) {
+    const Int3 c = m.coords(i);
+    for_each_face_neighbour(m, c.x, c.y, c.z, i, [&](Index n, int, int, const LinkLimits& lim) {
+      const Index k = L.at(n);
+      if (final_[k] || (st.flags[k] & kFixed)) return;
+      const std::size_t b = static_cast<std::size_t>(bucket_of(t + lim.w, delta));
+      if (b >= buckets_.size()) buckets_.resize(b + 1);
+      buckets_[b].push_back(n);
+    });
+  };
+  for (Index f : fixed) {
+    const Index k = L.at(f);
+    st.time[k] = 0.0f;
+    final_[k] = 1;
+    reached_.push_back(f);
+  }
+  for (Index f : fixed)
+    if (st.flags[L.at(f)] & kGrabbed) {
+      const Index b = grid_.brick_of_index(f);
+      touched[b] = hot[b] = 1;
+      push_neighbours(f, 0.0f);
+    }
+
+  std::vector<Index> list;
+  int iterations = 0;
+  constexpr std::int64_t kChunk = 1024;  // elements per work item of a large bucket
+  for (std::size_t kb = 0; kb < buckets_.size(); ++kb) {
+    if (buckets_[kb].empty()) continue;
+    list.swap(buckets_[kb]);
+    buckets_[kb].clear();
+    std::sort(list.begin(), list.end());
+    list.erase(std::unique(list.begin(), list.end()), list.end());
+    list.erase(std::remove_if(list.begin(), list.end(), [&](Index e) { return final_[L.at(e)] != 0; }), list.end());
+    if (list.empty()) continue;
+    const std::int64_t n = static_cast<std::int64_t>(list.size());
+    if (static_cast<std::int64_t>(scratch_t_.size()) < n) {
+      scratch_t_.resize(static_cast<std::size_t>(n));
+      scratch_p_.resize(static_cast<std::size_t>(n));
+    }
+    // Jacobi inside the bucket: tentative times live in time[]/p[] of the listed elements.
+    // Dependencies inside a bucket go strictly down in candidate time, which is fixed by
+    // earlier buckets, so this settles in at most (chain length + 1) passes.
+    const std::int64_t chunks = (n + kChunk - 1) / kChunk;
+    chunk_any_.assign(static_cast<std::size_t>(chunks), 0);
+    for (int pass = 0;; ++pass) {
+      pool.run(
+          chunks,
+          [&](std::int64_t ch) {
+            std::uint8_t any = 0;
+            for (std::int64_t j = ch * kChunk; j < std::min(n, (ch + 1) * kChunk); ++j) {
+              const Index e = list[static_cast<std::size_t>(j)];
+              const Index k = L.at(e);
+              Neighbour nb[6];
+              const int cnt = gather(st, e, nb);
+              float& t = scratch_t_[static_cast<std::size_t>(j)];
+              Vec3& p = scratch_p_[static_cast<std::size_t>(j)];
+              propagate_in_bucket(e, Vec3{st.q[0][k], st.q[1][k], st.q[2][k]}, nb, cnt, kb, delta, wall, t, p);
+              if (!(t == st.time[k]) || !(p == Vec3{st.p[0][k], st.p[1][k], st.p[2][k]})) any = 1;
+            }
+            chunk_any_[static_cast<std::size_t>(ch)] = any;
+          },
+          2);
+      ++iterations;
+      const bool any = std::any_of(chunk_any_.begin(), chunk_any_.end(), [](std::uint8_t a) { return a != 0; });
+      if (!any) break;
+      if (pass >= max_sweeps) {
+        ps.converged = false;
+        break;
+      }
+      for (std::int64_t j = 0; j < n; ++j) {
+        const Index k = L.at(list[static_cast<std::size_t>(j)]);
+        st.time[k] = scratch_t_[static_cast<std::size_t>(j)];
+        const Vec3 p = scratch_p_[static_cast<std::size_t>(j)];
+        st.p[0][k] = p.x;
+        st.p[1][k] = p.y;
+        st.p[2][k] = p.z;
+      }
+    }
+    for (Index e : list) {
+      const Index k = L.at(e);
+      if (st.time[k] < kInf) {
+        final_[k] = 1;
+        reached_.push_back(e);
+        ++ps.reached;
+        const Index b = grid_.brick_of_index(e);
+        touched[b] = hot[b] = 1;
+      }
+    }
+    for (Index e : list)
+      if (final_[L.at(e)]) push_neighbours(e, st.time[L.at(e)]);
+    list.clear();
+    // t + w >= (k+1)*delta mathematically, but float rounding can file a new candidate back
+    // into this bucket: decide those too before moving on.
+    if (!buckets_[kb].empty()) --kb;
+  }
+  ps.sweeps = iterations;
+  return ps;
+}
+
+}  // namespace hpcm::cpu

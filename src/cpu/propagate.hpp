@@ -1,0 +1,42 @@
+#pragma once
+// The CPU propagation (SPEC §4): the timestamped HP-ChainMail wave from the grabbed elements,
+// processed in time buckets (solver/rules.hpp, docs/solver.md). Every link has w >= delta
+// (the smallest link penalty), so all candidate times in the bucket [k delta, (k+1) delta)
+// come from elements already final in earlier buckets: each bucket is decided by a short,
+// provably finite Jacobi iteration, and the result is exactly the Dijkstra-order result.
+// FIXED elements are final with time 0 (upstream of everything); only grabbed ones start the
+// wave: anchors never move, and their neighbours are already inside their boxes (the link
+// restoration keeps them so).
+#include <cstdint>
+#include <vector>
+
+#include "cpu/storage.hpp"
+#include "cpu/worker_pool.hpp"
+#include "hpcm/stats.hpp"
+#include "solver/bricks.hpp"
+#include "solver/rules.hpp"
+
+namespace hpcm::cpu {
+
+class Propagation {
+ public:
+  void init(const Model& m, const solver::BrickGrid& grid);
+  /// One wave; FIXED elements are at their targets in st.p, everything else starts at st.q
+  /// (X-). Marks the bricks it moves in `touched` and `hot`.
+  PropagateStats run(Storage& st, const std::vector<Index>& fixed, const solver::Wall& wall, int max_sweeps,
+                     std::vector<std::uint8_t>& touched, std::vector<std::uint8_t>& hot, WorkerPool& pool);
+
+ private:
+  int gather(const Storage& st, Index e, solver::Neighbour* nb) const;
+  const Model* m_ = nullptr;
+  solver::BrickGrid grid_;
+  float delta_ = 1.0f;
+  std::vector<std::uint8_t> final_;          ///< storage order: decided in this wave
+  std::vector<Index> reached_;               ///< linear indices whose time was set in the last wave
+  std::vector<std::vector<Index>> buckets_;  ///< pending elements (linear) per time bucket
+  std::vector<float> scratch_t_;
+  std::vector<Vec3> scratch_p_;
+  std::vector<std::uint8_t> chunk_any_;
+};
+
+}  // namespace hpcm::cpu

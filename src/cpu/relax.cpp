@@ -1,0 +1,237 @@
+#include "cpu/relax.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "hpcm/state.hpp"
+
+namespace hpcm::cpu {
+
+using solver::Neighbour;
+using solver::Wall;
+
+float relax_element_scalar(const RelaxContext& c, int x, int y, int z) {
+  const Layout& L = *c.lay;
+  const Index k = L.at(x, y, z);
+  if (c.flags[k] & kFixed) return 0.0f;
+  const int nx = L.dims.x, ny = L.dims.y, nz = L.dims.z;
+  // The six neighbours in the rule's order: -x, +x, -y, +y, -z, +z.
+  struct Nb {
+    Index k;        ///< storage index
+    Index linear;
+    int axis, side;
+    Index link_owner;  ///< storage index of the link's - element
+  };
+  Nb nb[6];
+  int count = 0;
+  const Index i = x + static_cast<Index>(nx) * (y + static_cast<Index>(ny) * z);
+  const Index sy = nx, sz = static_cast<Index>(nx) * ny;
+  if (x > 0) { const Index n = L.at(x - 1, y, z); nb[count++] = {n, i - 1, 0, +1, n}; }
+  if (x + 1 < nx) nb[count++] = {L.at(x + 1, y, z), i + 1, 0, -1, k};
+  if (y > 0) { const Index n = L.at(x, y - 1, z); nb[count++] = {n, i - sy, 1, +1, n}; }
+  if (y + 1 < ny) nb[count++] = {L.at(x, y + 1, z), i + sy, 1, -1, k};
+  if (z > 0) { const Index n = L.at(x, y, z - 1); nb[count++] = {n, i - sz, 2, +1, n}; }
+  if (z + 1 < nz) nb[count++] = {L.at(x, y, z + 1), i + sz, 2, -1, k};
+  if (count == 0) return 0.0f;
+  const Vec3 cur{c.p[0][k], c.p[1][k], c.p[2][k]};
+
+  // The rule with precomputed weights (solver::relax_element, same floats and order).
+  float sx = 0, s_y = 0, s_z = 0, sw = 0;
+  float lo[3] = {c.wall.lo[0], c.wall.lo[1], c.wall.lo[2]}, hi[3] = {c.wall.hi[0], c.wall.hi[1], c.wall.hi[2]};
+  for (int q = 0; q < count; ++q) {
+    const Nb& n = nb[q];
+    const float w = c.weight[n.k];
+    const Vec3 pn{c.p[0][n.k], c.p[1][n.k], c.p[2][n.k]};
+    Vec3 prop = pn;
+    prop[n.axis] += static_cast<float>(n.side);
+    sx += w * prop.x;
+    s_y += w * prop.y;
+    s_z += w * prop.z;
+    sw += w;
+    const LinkLimits lim = limits_from_tau(c.link_tau[n.axis][n.link_owner], 1.0f);
+    for (int b = 0; b < 3; ++b) {
+      float l, h;
+      link_interval(pn, lim, n.axis, n.side, b, l, h);
+      lo[b] = lo[b] > l ? lo[b] : l;
+      hi[b] = hi[b] < h ? hi[b] : h;
+    }
+  }
+  Vec3 out;
+  if (!(lo[0] > hi[0] || lo[1] > hi[1] || lo[2] > hi[2])) {
+    const Vec3 avg{sx / sw, s_y / sw, s_z / sw};
+    const Vec3 target = c.omega == 1.0f ? avg
+                                        : Vec3{cur.x + c.omega * (avg.x - cur.x), cur.y + c.omega * (avg.y - cur.y),
+                                               cur.z + c.omega * (avg.z - cur.z)};
+    for (int b = 0; b < 3; ++b) out[b] = clampf(target[b], lo[b], hi[b]);
+  } else {
+    // Conflicting boxes: the general rule decides (earliest neighbour's box, then the wall).
+    Neighbour g[6];
+    for (int q = 0; q < count; ++q) {
+      const Nb& n = nb[q];
+      g[q] = Neighbour{n.linear, n.axis, n.side,
+                       limits_from_tau(c.link_tau[n.axis][n.link_owner], 1.0f), c.time[n.k],
+                       c.model->tau[static_cast<std::size_t>(n.linear)], Vec3{c.p[0][n.k], c.p[1][n.k], c.p[2][n.k]}};
+    }
+    out = solver::relax_element(g, count, cur, c.omega, c.wall);
+  }
+  const Vec3 d = out - cur;
+  const float corr = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
+  if (!(corr >= c.threshold) || corr == 0.0f) return 0.0f;  // small corrections are skipped
+  c.p[0][k] = out.x;
+  c.p[1][k] = out.y;
+  c.p[2][k] = out.z;
+  return corr;
+}
+
+void Relaxation::init(const solver::BrickGrid& grid, RelaxRunKernel kernel) {
+  grid_ = grid;
+  kernel_ = kernel;
+  cells_ = static_cast<Index>(grid.nb.x) * grid.nb.y;
+  start_.assign(static_cast<std::size_t>(grid.count), 0);
+}
+
+// The schedule. A sweep is two phases (colour 0, then colour 1); phase p of the frame is
+// colour p % 2 of sweep p / 2. The lattice is traversed plane by plane in a wavefront: at step
+// t, phase p works on plane z = t - p, for p = 0, 1, ..., P - 1 in that order. Phase p at plane
+// z reads the other colour at planes z - 1, z, z + 1 as phase p - 1 left them: plane z + 1 was
+// done by phase p - 1 earlier in the same step, planes z and z - 1 in earlier steps, and phase
+// p - 1 does not touch them again. So the result is that of full sweeps one after the other,
+// while every plane is read from memory once per frame and then reused from cache by the
+// following phases (temporal blocking).
+//
+// Work within a plane is per cell: the B x B elements of one brick column in that plane. A
+// cell is processed in phase p when its elements' inputs may have changed since their last
+// evaluation: the cell itself changed in phase p - 2 (own positions), or it or a face-
+// neighbouring cell changed in phase p - 1 (the other colour); in the first sweep, when its
+// brick or a face-neighbouring brick is in `hot` (changed by the rest of the last frame). A
+// skipped element would compute what it computed last time, so this gives the same floats as
+// processing everything.
+//
+// Threads split the phases: thread k takes a contiguous group and follows the thread of the
+// earlier phases one step behind, waiting only on that thread's progress counter (no barrier
+// at all, and no waiting on a thread that has not started: a thread that starts late simply
+// finds the work of the earlier phases done).
+bool Relaxation::cell_active(int p, int z, Index cell) const {
+  if (p < 2) {
+    if (start_[static_cast<std::size_t>(cell + cells_ * (z / grid_.size))]) return true;
+    if (p == 0) return false;
+  } else if (changed(p - 2, z, cell)) {
+    return true;
+  }
+  const int bx = static_cast<int>(cell % grid_.nb.x), by = static_cast<int>(cell / grid_.nb.x);
+  for (int zz = std::max(0, z - 1); zz <= std::min(grid_.dims.z - 1, z + 1); ++zz) {
+    if (changed(p - 1, zz, cell)) return true;
+    if (zz != z) continue;
+    if ((bx > 0 && changed(p - 1, zz, cell - 1)) || (bx + 1 < grid_.nb.x && changed(p - 1, zz, cell + 1)) ||
+        (by > 0 && changed(p - 1, zz, cell - grid_.nb.x)) || (by + 1 < grid_.nb.y && changed(p - 1, zz, cell + grid_.nb.x)))
+      return true;
+  }
+  return false;
+}
+
+float Relaxation::phase(const RelaxContext& ctx, int p, int z, Index& active_cells) {
+  const Layout& L = *ctx.lay;
+  const int B = grid_.size, colour = p & 1;
+  const Int3 nb = grid_.nb;
+  std::uint8_t* ch = changed_.data() + (static_cast<Index>(p) * grid_.dims.z + z) * cells_;
+  float mc = 0.0f;
+  for (int by = 0; by < nb.y; ++by) {
+    const Index row = static_cast<Index>(by) * nb.x;
+    const int y1 = std::min((by + 1) * B, L.dims.y);
+    for (int bx = 0; bx < nb.x;) {
+      if (!cell_active(p, z, row + bx)) {
+        ++bx;
+        continue;
+      }
+      int end = bx + 1;
+      while (end < nb.x && cell_active(p, z, row + end)) ++end;
+      active_cells += end - bx;
+      // Cells [bx, end) of this brick row: their rows, this colour's half of each.
+      const int x0 = bx * B, x1 = std::min(end * B, L.dims.x);
+      for (int y = by * B; y < y1; ++y) {
+        const int h = (colour ^ y ^ z) & 1;  // the half whose elements have this colour
+        // x = 2j + h in [x0, x1): j in [x0 / 2, (x1 - h + 1) / 2)
+        mc = std::max(mc, kernel_(ctx, RelaxRun{h, y, z, x0 / 2, (x1 - h + 1) / 2, ch + row + bx, x0 / 2, B / 2}));
+      }
+      bx = end;
+    }
+  }
+  return mc;
+}
+
+RelaxStats Relaxation::run(const RelaxContext& ctx, int sweeps, std::vector<std::uint8_t>& hot,
+                           std::vector<std::uint8_t>& touched, WorkerPool& pool, Index& active_max) {
+  RelaxStats st;
+  active_max = 0;
+  if (sweeps <= 0) return st;
+  const int nz = grid_.dims.z, P = 2 * sweeps;
+  // First-sweep work: bricks changed by the last frame, and their face neighbours.
+  bool any = false;
+  for (Index b = 0; b < grid_.count; ++b) {
+    start_[static_cast<std::size_t>(b)] = grid_.flagged_or_face_neighbour(hot, b) ? 1 : 0;
+    any = any || start_[static_cast<std::size_t>(b)];
+  }
+  if (!any) return st;
+  changed_.assign(static_cast<std::size_t>(P) * nz * cells_, 0);
+  phase_max_.assign(static_cast<std::size_t>(P), 0.0f);
+  phase_cells_.assign(static_cast<std::size_t>(P), 0);
+  const int T = std::min(pool.threads(), P);
+  progress_ = std::vector<std::atomic<int>>(static_cast<std::size_t>(T));
+  for (auto& a : progress_) a.store(-1);
+  const int steps = nz + P - 1;
+  pool.run(T, [&](std::int64_t k) {
+    const int p0 = static_cast<int>(k * P / T), p1 = static_cast<int>((k + 1) * P / T);
+    std::vector<float> mc(static_cast<std::size_t>(p1 - p0), 0.0f);
+    std::vector<Index> cells(static_cast<std::size_t>(p1 - p0), 0);
+    for (int t = 0; t < steps; ++t) {
+      if (k > 0) {  // the earlier phases must have finished this step
+        std::atomic<int>& before = progress_[static_cast<std::size_t>(k - 1)];
+        for (int spin = 0; before.load(std::memory_order_acquire) < t; ++spin)
+          if (spin > 64) before.wait(before.load(std::memory_order_acquire), std::memory_order_acquire);
+      }
+      for (int p = p0; p < p1; ++p) {
+        const int z = t - p;
+        if (z < 0 || z >= nz) continue;
+        mc[static_cast<std::size_t>(p - p0)] =
+            std::max(mc[static_cast<std::size_t>(p - p0)], phase(ctx, p, z, cells[static_cast<std::size_t>(p - p0)]));
+      }
+      progress_[static_cast<std::size_t>(k)].store(t, std::memory_order_release);
+      progress_[static_cast<std::size_t>(k)].notify_all();
+    }
+    for (int p = p0; p < p1; ++p) {
+      phase_max_[static_cast<std::size_t>(p)] = mc[static_cast<std::size_t>(p - p0)];
+      phase_cells_[static_cast<std::size_t>(p)] = cells[static_cast<std::size_t>(p - p0)];
+    }
+  });
+  // Statistics and the bricks for the next frame.
+  std::fill(hot.begin(), hot.end(), 0);
+  for (int s = 0; s < sweeps; ++s) {
+    const Index cells = phase_cells_[static_cast<std::size_t>(2 * s)] + phase_cells_[static_cast<std::size_t>(2 * s + 1)];
+    if (cells == 0) break;
+    st.sweeps = s + 1;
+    st.max_correction = std::max(phase_max_[static_cast<std::size_t>(2 * s)], phase_max_[static_cast<std::size_t>(2 * s + 1)]);
+  }
+  const int B = grid_.size;
+  for (int p = 0; p < P; ++p)
+    for (int z = 0; z < nz; ++z) {
+      const std::uint8_t* ch = changed_.data() + (static_cast<Index>(p) * nz + z) * cells_;
+      const Index brick_layer = cells_ * (z / B);
+      Index active = 0;
+      for (Index c = 0; c < cells_; ++c) {
+        if (!ch[c]) continue;
+        touched[static_cast<std::size_t>(brick_layer + c)] = 1;
+        // What the last sweep changed is work for the next frame.
+        if (p >= P - 2) hot[static_cast<std::size_t>(brick_layer + c)] = 1;
+        ++active;
+      }
+      (void)active;
+    }
+  for (int s = 0; s < sweeps; ++s)
+    active_max = std::max<Index>(active_max, (phase_cells_[static_cast<std::size_t>(2 * s)] +
+                                              phase_cells_[static_cast<std::size_t>(2 * s + 1)] + 2 * B - 1) /
+                                                 (2 * B));
+  return st;
+}
+
+}  // namespace hpcm::cpu

@@ -1,0 +1,78 @@
+#pragma once
+// The CPU relaxation (SPEC §4): red-black Gauss-Seidel sweeps over the bricks that changed in
+// the previous sweep and their face neighbours, from the rule of solver/rules.hpp. Bricks
+// skipped by that schedule would compute exactly what they computed last time (their inputs
+// did not change), so the brick-sparse schedule gives the same floats as sweeping everything.
+//
+// One colour of one lattice row is a unit-stride run in the storage (cpu/storage.hpp). Interior
+// runs go through a SIMD kernel (AVX2 when the CPU has it, SSE2 otherwise; chosen at run
+// time) that performs, lane by lane, the floating-point operations of the scalar rule in the
+// same order, so every path gives the same bits. Border elements, and any element whose
+// neighbours' boxes do not intersect, take the scalar rule.
+#include <atomic>
+#include <cstdint>
+#include <vector>
+
+#include "cpu/storage.hpp"
+#include "cpu/worker_pool.hpp"
+#include "hpcm/stats.hpp"
+#include "solver/bricks.hpp"
+#include "solver/rules.hpp"
+
+namespace hpcm::cpu {
+
+/// What one relaxation pass reads and writes.
+struct RelaxContext {
+  const Layout* lay;
+  float* p[3];                   ///< positions, storage order
+  const float* weight;           ///< 1 / (tau + 1e-4) per element
+  const float* link_tau[3];      ///< tolerance of each element's +x, +y, +z link
+  const std::uint8_t* flags;
+  const float* time;             ///< arrival times (tie-break of the general rule)
+  const Model* model;            ///< tolerances for the general rule
+  solver::Wall wall;
+  float threshold, omega;
+};
+
+/// One colour's elements [j0, j1) of half h of row (y, z). An element j that moves marks
+/// brick column col_changed[(j - col_base) / col_width].
+struct RelaxRun {
+  int h, y, z, j0, j1;
+  std::uint8_t* col_changed;
+  int col_base, col_width;
+};
+
+/// Result of a run: largest correction applied (0: nothing moved).
+using RelaxRunKernel = float (*)(const RelaxContext&, const RelaxRun&);
+
+/// The scalar rule for the element at lattice (x, y, z): moves it when the correction is at
+/// least the threshold; returns the correction applied (0 if none).
+float relax_element_scalar(const RelaxContext& c, int x, int y, int z);
+
+class Relaxation {
+ public:
+  void init(const solver::BrickGrid& grid, RelaxRunKernel kernel);
+  /// Up to `sweeps` sweeps (cpu/relax.cpp has the schedule), starting from the bricks marked
+  /// in `hot` and their face neighbours; stops early where nothing moves. Bricks whose
+  /// elements moved are marked in `touched`; `hot` gets the bricks the last sweep changed.
+  /// `active_max` gets the largest brick count of a sweep.
+  RelaxStats run(const RelaxContext& ctx, int sweeps, std::vector<std::uint8_t>& hot,
+                 std::vector<std::uint8_t>& touched, WorkerPool& pool, Index& active_max);
+
+ private:
+  bool changed(int p, int z, Index cell) const {
+    return changed_[static_cast<std::size_t>((static_cast<Index>(p) * grid_.dims.z + z) * cells_ + cell)] != 0;
+  }
+  bool cell_active(int p, int z, Index cell) const;
+  float phase(const RelaxContext& ctx, int p, int z, Index& active_cells);
+  solver::BrickGrid grid_;
+  RelaxRunKernel kernel_ = nullptr;
+  Index cells_ = 0;                     ///< brick columns per plane
+  std::vector<std::uint8_t> start_;     ///< per brick: work of the first sweep
+  std::vector<std::uint8_t> changed_;   ///< [phase][plane][cell]: an element moved
+  std::vector<float> phase_max_;
+  std::vector<Index> phase_cells_;
+  std::vector<std::atomic<int>> progress_;  ///< per thread: last step finished
+};
+
+}  // namespace hpcm::cpu

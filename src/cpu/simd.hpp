@@ -1,0 +1,47 @@
+#pragma once
+// Vector helpers of the CPU kernels, on GCC vector types: the same source is compiled 4-wide
+// for SSE2 (simd_sse2.cpp) and 8-wide for AVX2 (simd_avx2.cpp). The operators are plain IEEE
+// single precision, lane by lane, so a kernel written with them performs the floating-point
+// operations of the scalar rule it mirrors, in the same order, and gives the same bits.
+#include <cstdint>
+#include <cstring>
+
+namespace hpcm::cpu::simd {
+
+template <class V>
+inline V load(const float* p) {
+  V v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+template <class V>
+inline void store(float* p, V v) {
+  std::memcpy(p, &v, sizeof v);
+}
+template <class V>
+inline V splat(float x) {
+  return V{} + x;
+}
+template <class V>
+inline V vmax(V a, V b) {
+  return a > b ? a : b;  // exactly the scalar ternary a > b ? a : b
+}
+template <class V>
+inline V vmin(V a, V b) {
+  return a < b ? a : b;
+}
+
+// Per instruction set (defined in simd_sse2.cpp / simd_avx2.cpp before the kernels):
+template <class V>
+using Mask = decltype(V{} < V{});
+/// N flag or tissue bytes widened to int lanes.
+template <class V>
+Mask<V> load_bytes(const std::uint8_t* p);
+/// Square root of each lane (IEEE, correctly rounded).
+template <class V>
+V vsqrt(V a);
+/// Bit l set when lane l of the mask is set.
+template <class V>
+unsigned lane_bits(Mask<V> m);
+
+}  // namespace hpcm::cpu::simd

@@ -1,0 +1,44 @@
+// The CPU kernels on 4-wide vectors (SSE2: every x86-64 CPU).
+#include <emmintrin.h>
+
+#include <algorithm>
+
+#include "cpu/simd.hpp"
+
+namespace hpcm::cpu::simd {
+typedef float f4 __attribute__((vector_size(16)));
+typedef int i4 __attribute__((vector_size(16)));
+
+template <>
+inline i4 load_bytes<f4>(const std::uint8_t* p) {
+  std::uint32_t w;
+  std::memcpy(&w, p, sizeof w);
+  return i4{static_cast<int>(w & 0xff), static_cast<int>(w >> 8 & 0xff), static_cast<int>(w >> 16 & 0xff),
+            static_cast<int>(w >> 24)};
+}
+template <>
+inline f4 vsqrt<f4>(f4 a) {
+  return reinterpret_cast<f4>(_mm_sqrt_ps(reinterpret_cast<__m128>(a)));
+}
+template <>
+inline unsigned lane_bits<f4>(i4 m) {
+  return static_cast<unsigned>(_mm_movemask_ps(reinterpret_cast<__m128>(m)));
+}
+}  // namespace hpcm::cpu::simd
+
+#include "cpu/layer_simd.hpp"
+#include "cpu/relax_simd.hpp"
+
+namespace hpcm::cpu {
+
+SimdKernels kernels_sse2() {
+  SimdKernels k;
+  k.relax = [](const RelaxContext& c, const RelaxRun& r) { return simd::relax_run<simd::f4>(c, r); };
+  k.layer = [](Storage& st, const dynamics::LayerConstants& lc, const LayerRow& row, SpeedStats* sp) {
+    simd::layer_row<simd::f4>(st, lc, row, sp);
+  };
+  k.name = "sse2";
+  return k;
+}
+
+}  // namespace hpcm::cpu

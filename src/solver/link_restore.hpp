@@ -1,0 +1,59 @@
+#pragma once
+// The host schedule of the link restoration (rule and reasoning: solver/restore.hpp): a
+// sequential work list per axis, restricted to the elements around the links found violated.
+// Used by the CPU backend on its storage and by the CUDA backend on a host copy; positions are
+// reached through RestoreAccess, so the element storage order is the backend's business.
+#include <cstdint>
+#include <vector>
+
+#include "hpcm/model.hpp"
+#include "hpcm/stats.hpp"
+#include "solver/bricks.hpp"
+#include "solver/restore.hpp"
+
+namespace hpcm::solver {
+
+/// Positions and FIXED flags of a backend, by linear element index.
+struct RestoreAccess {
+  virtual ~RestoreAccess() = default;
+  virtual Vec3 position(Index i) const = 0;
+  virtual void set_coordinate(Index i, int axis, float value) = 0;
+  virtual bool fixed(Index i) const = 0;
+};
+
+/// Finds the links with an end in `bricks` (and the elements there outside the wall) violated
+/// by more than kRestoreTolerance; appends both ends (each once, ascending) to `seeds` and
+/// counts them in `st`. Generic over RestoreAccess (a backend may have a faster check).
+void find_violations(const Model& m, const BrickGrid& grid, const std::vector<Index>& bricks, const RestoreAccess& pos,
+                     const Wall& wall, std::vector<Index>& seeds, RestoreStats& st);
+
+class LinkRestorer {
+ public:
+  void init(const Model& m);
+  /// Restores consistency around `seeds` (ascending, unique linear indices): every link and
+  /// the wall, FIXED elements untouched. Bricks whose elements moved are flagged in `moved`;
+  /// st.moved counts the elements moved.
+  void restore(const Model& m, const BrickGrid& grid, const std::vector<Index>& seeds, RestoreAccess& pos,
+               const Wall& wall, std::vector<std::uint8_t>& moved, RestoreStats& st);
+
+ private:
+  /// One pass over coordinate b of copy k (0 or 1), seeded with `seeds`; records the elements
+  /// whose value changed in changed_ (each once per axis).
+  void pass(const Model& m, const RestoreAccess& pos, int b, int k, float wall_lo, float wall_hi, bool upper,
+            const std::vector<Index>& seeds);
+  /// The coordinate of element e in copy k, loaded from pos on first use in this axis.
+  float& value(const RestoreAccess& pos, int b, int k, Index e) {
+    if (stamp_[e] != epoch_) {
+      stamp_[e] = epoch_;
+      val_[0][e] = val_[1][e] = pos.position(e)[b];
+    }
+    return val_[k][e];
+  }
+  std::vector<Index> changed_, queue_, pass_seeds_, moved_list_;
+  std::vector<std::uint8_t> queued_, mark_, moved_flag_;
+  std::vector<std::uint32_t> stamp_;
+  std::uint32_t epoch_ = 0;
+  std::vector<float> val_[2];  ///< coordinate b under the two pass orders
+};
+
+}  // namespace hpcm::solver

@@ -1,0 +1,123 @@
+#include "solver/tool_limit.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <queue>
+#include <utility>
+
+#include "solver/neighbours.hpp"
+
+namespace hpcm::solver {
+
+Vec3 ToolLimit::clamp(Vec3 o) const {
+  for (int b = 0; b < 3; ++b) o[b] = std::min(std::max(o[b], lo[b]), hi[b]);
+  return o;
+}
+
+bool ToolLimit::contains(Vec3 o) const {
+  for (int b = 0; b < 3; ++b)
+    if (!(o[b] >= lo[b] && o[b] <= hi[b])) return false;
+  return true;
+}
+
+namespace {
+
+constexpr double kInfD = std::numeric_limits<double>::infinity();
+
+/// Slack of the link between e and its neighbour n on coordinate axis b, in the direction
+/// "n's displacement may exceed e's by at most this": d_n <= d_e + slack (displacements d = x - X0).
+/// side = +1 when e lies on the + side of n along the link axis a.
+double slack_to(const LinkLimits& L, int a, int side, int b) {
+  if (a != b) return L.shear;
+  // n below e along the axis (side +1): n moving up compresses the link, down to min_d.
+  return side > 0 ? 1.0 - static_cast<double>(L.min_d) : static_cast<double>(L.max_d) - 1.0;
+}
+
+/// Slack in the other direction: d_e <= d_n + slack_from.
+double slack_from(const LinkLimits& L, int a, int side, int b) {
+  if (a != b) return L.shear;
+  return side > 0 ? static_cast<double>(L.max_d) - 1.0 : 1.0 - static_cast<double>(L.min_d);
+}
+
+struct Search {
+  const Model& m;
+  const std::vector<std::uint8_t>& anchored;
+  std::vector<std::uint8_t> grabbed;  // per element
+  std::vector<double> dist;
+  std::vector<Index> seen;
+  float margin;
+
+  /// Smallest (start_g + shortest slack path to an anchor or to the wall) over the grabbed
+  /// elements on axis b. forward: paths follow d_next <= d_cur + slack (the lower bound of
+  /// the tool); otherwise the reversed edges (the upper bound).
+  double run(const std::vector<Index>& starts, const std::vector<double>& start_dist, int b, bool forward) {
+    for (Index i : seen) dist[static_cast<std::size_t>(i)] = kInfD;
+    seen.clear();
+    using Entry = std::pair<double, Index>;
+    std::priority_queue<Entry, std::vector<Entry>, std::greater<Entry>> heap;
+    for (std::size_t k = 0; k < starts.size(); ++k) {
+      const Index g = starts[k];
+      if (start_dist[k] < dist[static_cast<std::size_t>(g)]) {
+        if (dist[static_cast<std::size_t>(g)] == kInfD) seen.push_back(g);
+        dist[static_cast<std::size_t>(g)] = start_dist[k];
+        heap.push({start_dist[k], g});
+      }
+    }
+    const int n_b = b == 0 ? m.dims.x : (b == 1 ? m.dims.y : m.dims.z);
+    double best = kInfD;
+    while (!heap.empty()) {
+      const auto [d, e] = heap.top();
+      heap.pop();
+      if (d > dist[static_cast<std::size_t>(e)]) continue;
+      if (d >= best) break;
+      const Int3 c = m.coords(e);
+      const double rest = c[b];
+      // The wall: forward (lower bound) d_e >= -(rest + margin); reversed d_e <= N - 1 + margin - rest.
+      const double wall = forward ? rest + margin : (n_b - 1 + margin) - rest;
+      if (anchored[static_cast<std::size_t>(e)]) {
+        best = std::min(best, d);
+        continue;  // an anchor ends the chain
+      }
+      best = std::min(best, d + wall);
+      for_each_face_neighbour(m, c.x, c.y, c.z, e, [&](Index n, int a, int side, const LinkLimits& L) {
+        if (grabbed[static_cast<std::size_t>(n)]) return;
+        const double nd = d + (forward ? slack_to(L, a, side, b) : slack_from(L, a, side, b));
+        if (nd < dist[static_cast<std::size_t>(n)]) {
+          if (dist[static_cast<std::size_t>(n)] == kInfD) seen.push_back(n);
+          dist[static_cast<std::size_t>(n)] = nd;
+          heap.push({nd, n});
+        }
+      });
+    }
+    return best;
+  }
+};
+
+}  // namespace
+
+ToolLimit tool_limit(const Model& m, const std::vector<Index>& grabbed, const std::vector<Vec3>& origin,
+                     const std::vector<std::uint8_t>& anchored, float margin) {
+  if (grabbed.size() != origin.size()) throw Error("tool_limit: grabbed and origin sizes differ");
+  if (static_cast<Index>(anchored.size()) != m.size()) throw Error("tool_limit: anchor flags do not match the model");
+  ToolLimit lim;
+  if (grabbed.empty()) return lim;
+  Search s{m, anchored, std::vector<std::uint8_t>(static_cast<std::size_t>(m.size()), 0),
+           std::vector<double>(static_cast<std::size_t>(m.size()), kInfD), {}, margin};
+  for (Index g : grabbed) s.grabbed[static_cast<std::size_t>(g)] = 1;
+  std::vector<double> start(grabbed.size());
+  for (int b = 0; b < 3; ++b) {
+    // Upper bound: offset <= slack(anchor or wall -> g) - d_g, searched backwards from g.
+    for (std::size_t k = 0; k < grabbed.size(); ++k) start[k] = -(static_cast<double>(origin[k][b]) - m.coords(grabbed[k])[b]);
+    const double up = s.run(grabbed, start, b, false);
+    // Lower bound: offset >= -(d_g + slack(g -> anchor or wall)), searched forwards from g.
+    for (std::size_t k = 0; k < grabbed.size(); ++k) start[k] = static_cast<double>(origin[k][b]) - m.coords(grabbed[k])[b];
+    const double down = s.run(grabbed, start, b, true);
+    // Rounded inwards so that a clamped offset is met after float rounding of the targets.
+    lim.hi[b] = std::nextafter(static_cast<float>(std::min(up, 1e30)), -INFINITY);
+    lim.lo[b] = std::nextafter(static_cast<float>(-std::min(down, 1e30)), INFINITY);
+  }
+  return lim;
+}
+
+}  // namespace hpcm::solver
