@@ -12,8 +12,7 @@ PKGS=(
   python3-dev pybind11-dev python3-numpy python3-pytest
   python3-nibabel python3-pydicom python3-pil plastimatch
   xvfb xauth
-  python3-pydicom            # hostile-input tests: damaged copies of a DICOM series
-  clang libclang-rt-14-dev   # sanitizer build (ASan + UBSan) and libFuzzer harnesses
+  clang lld libclang-rt-14-dev libomp-14-dev  # libFuzzer harnesses (preset fuzz: clang, lld, OpenMP)
 )
 missing=()
 for p in "${PKGS[@]}"; do
