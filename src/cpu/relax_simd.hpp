@@ -19,15 +19,22 @@
 
 namespace hpcm::cpu::simd {
 
-template <class V>
-float relax_run(const RelaxContext& c, const RelaxRun& r) {
+/// The vector rule over [i0, i1) of a run. AllRows: the row has all four y/z neighbours (every
+/// interior row), so the neighbour loop is fully unrolled with compile-time axes and sides and
+/// the accumulators stay in registers; border rows pass present[] and skip missing neighbours.
+template <class V, bool AllRows>
+float relax_span(const RelaxContext& c, const RelaxRun& r, const bool (&present)[6]) {
   constexpr int N = sizeof(V) / sizeof(float);
   using M = Mask<V>;
   const Layout& L = *c.lay;
-  const int nx = L.dims.x, ny = L.dims.y, nz = L.dims.z;
+  const int nx = L.dims.x, ny = L.dims.y;
   const int h = r.h;
+  // Columns of the changed flags are col_width (a power of two) run elements wide.
+  int col_shift = 0;
+  while ((1 << col_shift) < r.col_width) ++col_shift;
+  auto mark = [&](int j) { r.col_changed[(j - r.col_base) >> col_shift] = 1; };
   float max_corr = 0.0f;
-  auto mark = [&](int j) { r.col_changed[(j - r.col_base) / r.col_width] = 1; };
+  V max_corr_v = splat<V>(0.0f);
   auto scalar = [&](int j) {
     const float corr = relax_element_scalar(c, 2 * j + h, r.y, r.z);
     if (corr > 0.0f) {
@@ -35,14 +42,7 @@ float relax_run(const RelaxContext& c, const RelaxRun& r) {
       max_corr = std::max(max_corr, corr);
     }
   };
-  // Elements with both x neighbours: 1 <= x <= nx - 2 with x = 2j + h. A row lacks its -y, +y,
-  // -z or +z neighbours all along, so the vector code simply leaves those out, as the scalar
-  // rule does; the elements at the two ends of the row take the scalar rule.
-  // A row lacks its -y, +y, -z or +z neighbours all along, and its first and last element lack
-  // a -x or +x neighbour: the vector code leaves a missing neighbour out (weight 0 and an
-  // unbounded box, which adds exactly nothing to the sums and limits), as the scalar rule does.
   const int i0 = r.j0, i1 = r.j1;
-  const bool present[6] = {true, true, r.y > 0, r.y + 1 < ny, r.z > 0, r.z + 1 < nz};
   const V minus_inf = splat<V>(-solver::kInf), plus_inf = splat<V>(solver::kInf);
   const Index own0 = L.row_start(h, r.y, r.z);
   const Index oth0 = L.row_start(1 - h, r.y, r.z);
@@ -52,83 +52,122 @@ float relax_run(const RelaxContext& c, const RelaxRun& r) {
   const V one = splat<V>(1.0f), zero = splat<V>(0.0f);
   const V k08 = splat<V>(0.8f), k098 = splat<V>(0.98f), khalf = splat<V>(0.5f);
   const V omega = splat<V>(c.omega), threshold = splat<V>(c.threshold);
+  const V wall_lo[3] = {splat<V>(c.wall.lo[0]), splat<V>(c.wall.lo[1]), splat<V>(c.wall.lo[2])};
+  const V wall_hi[3] = {splat<V>(c.wall.hi[0]), splat<V>(c.wall.hi[1]), splat<V>(c.wall.hi[2])};
   const bool plain = c.omega == 1.0f;
   V lane_index;
   for (int l = 0; l < N; ++l) lane_index[l] = static_cast<float>(l);
+  const V x_first = splat<V>(0.0f), x_last = splat<V>(static_cast<float>(nx - 1));
 
   for (int j = i0; j < i1; j += N) {
     const Index k = own0 + j;
-    // Neighbour storage indices (first lane), link owners, axis and side, in the rule's order.
-    const Index nk[6] = {left + j, right + j, k - sy, k + sy, k - sz, k + sz};
-    const Index owner[6] = {left + j, k, k - sy, k, k - sz, k};
-    const int axis[6] = {0, 0, 1, 1, 2, 2};
-    const float side[6] = {1.0f, -1.0f, 1.0f, -1.0f, 1.0f, -1.0f};
-    V s[3] = {zero, zero, zero}, sw = zero;
-    V lo[3] = {splat<V>(c.wall.lo[0]), splat<V>(c.wall.lo[1]), splat<V>(c.wall.lo[2])};
-    V hi[3] = {splat<V>(c.wall.hi[0]), splat<V>(c.wall.hi[1]), splat<V>(c.wall.hi[2])};
+    V s0 = zero, s1 = zero, s2 = zero, sw = zero;
+    V lo0 = wall_lo[0], lo1 = wall_lo[1], lo2 = wall_lo[2];
+    V hi0 = wall_hi[0], hi1 = wall_hi[1], hi2 = wall_hi[2];
     // Lanes whose element has no -x (x = 0) or no +x (x = nx - 1) neighbour.
     const V x = splat<V>(static_cast<float>(h)) + splat<V>(2.0f) * (lane_index + splat<V>(static_cast<float>(j)));
-    const M no_left = x == splat<V>(0.0f), no_right = x == splat<V>(static_cast<float>(nx - 1));
-    for (int q = 0; q < 6; ++q) {
-      if (!present[q]) continue;
-      const int a = axis[q];
-      const M missing = q == 0 ? no_left : (q == 1 ? no_right : M{});
-      const V w = missing ? splat<V>(0.0f) : load<V>(c.weight + nk[q]);
-      V pn[3];
-      for (int b = 0; b < 3; ++b) pn[b] = load<V>(c.p[b] + nk[q]);
-      for (int b = 0; b < 3; ++b) s[b] = s[b] + w * (b == a ? pn[b] + side[q] : pn[b]);
+    const M no_left = x == x_first, no_right = x == x_last;
+    // Neighbour q in the rule's order -x, +x, -y, +y, -z, +z: axis q / 2, the element on the
+    // neighbour's + side for even q. Same operations, same order as the scalar rule.
+    auto neighbour = [&]<int q>(Index nk, Index owner) {
+      constexpr int a = q / 2;
+      constexpr bool plus_side = q % 2 == 0;
+      const V side = splat<V>(plus_side ? 1.0f : -1.0f);
+      V w = load<V>(c.weight + nk);
+      [[maybe_unused]] M missing{};
+      if constexpr (q == 0) missing = no_left;
+      if constexpr (q == 1) missing = no_right;
+      if constexpr (q < 2) w = missing ? zero : w;
+      const V p0 = load<V>(c.p[0] + nk), p1 = load<V>(c.p[1] + nk), p2 = load<V>(c.p[2] + nk);
+      s0 = s0 + w * (a == 0 ? p0 + side : p0);
+      s1 = s1 + w * (a == 1 ? p1 + side : p1);
+      s2 = s2 + w * (a == 2 ? p2 + side : p2);
       sw = sw + w;
       // limits_from_tau: min_d = 1 - 0.8 tau, max_d = 1 + tau, shear = min(tau, 0.5 (0.98 - 0.8 tau)).
-      const V tau = load<V>(c.link_tau[a] + owner[q]);
+      const V tau = load<V>(c.link_tau[a] + owner);
       const V min_d = one - k08 * tau, max_d = one + tau;
       const V cap = khalf * (k098 - k08 * tau);
       const V shear = tau < cap ? tau : cap;
-      for (int b = 0; b < 3; ++b) {
+      auto bound = [&](V& lo, V& hi, V pn, bool axial) {
         V l, u;
-        if (b == a) {
-          l = side[q] > 0 ? pn[b] + min_d : pn[b] - max_d;
-          u = side[q] > 0 ? pn[b] + max_d : pn[b] - min_d;
+        if (axial) {
+          l = plus_side ? pn + min_d : pn - max_d;
+          u = plus_side ? pn + max_d : pn - min_d;
         } else {
-          l = pn[b] - shear;
-          u = pn[b] + shear;
+          l = pn - shear;
+          u = pn + shear;
         }
-        lo[b] = vmax(lo[b], missing ? minus_inf : l);
-        hi[b] = vmin(hi[b], missing ? plus_inf : u);
-      }
-    }
-    const V cur[3] = {load<V>(c.p[0] + k), load<V>(c.p[1] + k), load<V>(c.p[2] + k)};
-    V out[3];
-    for (int b = 0; b < 3; ++b) {
-      const V avg = s[b] / sw;
-      const V target = plain ? avg : cur[b] + omega * (avg - cur[b]);
-      out[b] = vmax(lo[b], vmin(hi[b], target));  // clampf, valid where lo <= hi
-    }
-    const V d0 = out[0] - cur[0], d1 = out[1] - cur[1], d2 = out[2] - cur[2];
+        if constexpr (q < 2) {
+          l = missing ? minus_inf : l;
+          u = missing ? plus_inf : u;
+        }
+        lo = vmax(lo, l);
+        hi = vmin(hi, u);
+      };
+      bound(lo0, hi0, p0, a == 0);
+      bound(lo1, hi1, p1, a == 1);
+      bound(lo2, hi2, p2, a == 2);
+    };
+    neighbour.template operator()<0>(left + j, left + j);
+    neighbour.template operator()<1>(right + j, k);
+    if (AllRows || present[2]) neighbour.template operator()<2>(k - sy, k - sy);
+    if (AllRows || present[3]) neighbour.template operator()<3>(k + sy, k);
+    if (AllRows || present[4]) neighbour.template operator()<4>(k - sz, k - sz);
+    if (AllRows || present[5]) neighbour.template operator()<5>(k + sz, k);
+
+    const V cur0 = load<V>(c.p[0] + k), cur1 = load<V>(c.p[1] + k), cur2 = load<V>(c.p[2] + k);
+    auto step = [&](V s, V cur, V lo, V hi) {
+      const V avg = s / sw;
+      const V target = plain ? avg : cur + omega * (avg - cur);
+      return vmax(lo, vmin(hi, target));  // clampf, valid where lo <= hi
+    };
+    const V out0 = step(s0, cur0, lo0, hi0), out1 = step(s1, cur1, lo1, hi1), out2 = step(s2, cur2, lo2, hi2);
+    const V d0 = out0 - cur0, d1 = out1 - cur1, d2 = out2 - cur2;
     const V corr = vsqrt<V>(d0 * d0 + d1 * d1 + d2 * d2);
     const M in_run = lane_index < splat<V>(static_cast<float>(i1 - j));
-    const M boxes_meet = ~(lo[0] > hi[0]) & ~(lo[1] > hi[1]) & ~(lo[2] > hi[2]);
+    const M boxes_meet = ~(lo0 > hi0) & ~(lo1 > hi1) & ~(lo2 > hi2);
     const M free = ((load_bytes<V>(c.flags + k) & static_cast<int>(kFixed)) == 0) & in_run;
     const M apply = boxes_meet & free & (corr >= threshold) & (corr != zero);
     const unsigned applied = lane_bits<V>(apply), conflict = lane_bits<V>(free & ~boxes_meet);
     if (applied) {
       if (j + N <= i1) {  // a full vector: every lane is this run's
-        for (int b = 0; b < 3; ++b) store<V>(c.p[b] + k, apply ? out[b] : cur[b]);
+        store<V>(c.p[0] + k, apply ? out0 : cur0);
+        store<V>(c.p[1] + k, apply ? out1 : cur1);
+        store<V>(c.p[2] + k, apply ? out2 : cur2);
       } else {  // the masked tail: lanes past the run may belong to another thread's run
         for (int l = 0; l < N; ++l)
-          if (applied >> l & 1u)
-            for (int b = 0; b < 3; ++b) c.p[b][k + l] = out[b][l];
+          if (applied >> l & 1u) {
+            c.p[0][k + l] = out0[l];
+            c.p[1][k + l] = out1[l];
+            c.p[2][k + l] = out2[l];
+          }
       }
-      for (int l = 0; l < N; ++l)
-        if (applied >> l & 1u) {
-          mark(j + l);
-          max_corr = std::max(max_corr, corr[l]);
-        }
+      max_corr_v = vmax(max_corr_v, apply ? corr : zero);
+      // The applied lanes span at most a few columns: mark the first and last applied lane's
+      // columns and any column strictly between them that holds an applied lane.
+      for (unsigned bits = applied; bits;) {
+        const int l = __builtin_ctz(bits);
+        mark(j + l);
+        const int col_end = (((j + l - r.col_base) >> col_shift) + 1) << col_shift;  // first j of the next column
+        const int skip = col_end + r.col_base - j;                                   // lanes before it
+        bits &= skip >= N ? 0u : ~((1u << skip) - 1u);
+      }
     }
     if (conflict)
       for (int l = 0; l < N; ++l)
         if (conflict >> l & 1u) scalar(j + l);
   }
+  for (int l = 0; l < N; ++l) max_corr = std::max(max_corr, max_corr_v[l]);
   return max_corr;
+}
+
+/// The rule over one colour run (RelaxRun), interior rows through the unrolled kernel.
+template <class V>
+float relax_run(const RelaxContext& c, const RelaxRun& r) {
+  const int ny = c.lay->dims.y, nz = c.lay->dims.z;
+  const bool present[6] = {true, true, r.y > 0, r.y + 1 < ny, r.z > 0, r.z + 1 < nz};
+  const bool all_rows = present[2] && present[3] && present[4] && present[5];
+  return all_rows ? relax_span<V, true>(c, r, present) : relax_span<V, false>(c, r, present);
 }
 
 }  // namespace hpcm::cpu::simd
