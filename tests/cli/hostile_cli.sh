@@ -37,6 +37,10 @@ if /usr/bin/python3 -c "import matplotlib" 2>/dev/null; then
   [ ! -e "$OUT/PWNED" ] || fail "shell injection: --out ran a command"
   [ -s "$bad/report.md" ] && [ -s "$bad/figure3.png" ] || fail "report not written for an --out with quotes"
   ok "experiment --out with quotes and ';': no command ran, report written"
+  # Work per frame: one row per protocol frame and condition, plotted in figure 5.
+  [ "$(wc -l <"$bad/activity.csv")" -eq 451 ] || fail "activity.csv: expected a header and 3 x 150 rows, got $(wc -l <"$bad/activity.csv") lines"
+  [ -s "$bad/figure5.png" ] && grep -q "Figure 5" "$bad/report.md" || fail "figure 5 (active elements per frame) missing from the report"
+  ok "experiment writes activity.csv (3 x 150 frames) and plots it in figure 5"
 else
   echo "SKIP: /usr/bin/python3 without matplotlib: report-script injection case not run"
 fi
