@@ -48,6 +48,7 @@ void CpuBackend::load(const Model& m, const Params& p, const State& s) {
   kernel_name_ = kernels.name;
   relaxation_.init(grid_, kernels.relax);
   layer_.init(grid_, kernels.layer);
+  check_.init(kernels.link_check);
   restorer_.init(m);
 }
 

@@ -2,6 +2,7 @@
 // The CPU's SIMD kernels and their run-time choice: AVX2 where the CPU has it, SSE2 (every
 // x86-64 CPU) otherwise. Both give the same bits as the scalar rules they mirror.
 #include <string>
+#include <vector>
 
 #include "cpu/relax.hpp"
 #include "cpu/storage.hpp"
@@ -27,9 +28,16 @@ struct LayerRow {
 /// |X_{t+1} - X-| to `speeds` in element order when non-null.
 using LayerRowKernel = void (*)(Storage& st, const dynamics::LayerConstants& k, const LayerRow& row, SpeedStats* speeds);
 
+/// The link check's vector filter over elements [j0, j1) of half h of row (y, z): appends the
+/// elements that may have a violated +x/+y/+z link or lie outside the wall to `flagged`;
+/// returns the first element it did not look at.
+using LinkRowKernel = int (*)(const Storage& st, const solver::Wall& wall, int h, int y, int z, int j0, int j1,
+                              std::vector<int>& flagged);
+
 struct SimdKernels {
   RelaxRunKernel relax = nullptr;
   LayerRowKernel layer = nullptr;
+  LinkRowKernel link_check = nullptr;
   const char* name = "";  ///< "avx2" or "sse2"
 };
 

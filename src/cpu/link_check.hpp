@@ -4,6 +4,7 @@
 // and every element there against the wall.
 #include <vector>
 
+#include "cpu/kernels.hpp"
 #include "cpu/storage.hpp"
 #include "cpu/worker_pool.hpp"
 #include "hpcm/stats.hpp"
@@ -14,12 +15,22 @@ namespace hpcm::cpu {
 
 class LinkCheck {
  public:
+  void init(LinkRowKernel filter) { filter_ = filter; }
   /// Appends the ends of the violated links (linear indices, ascending, once each) to `seeds`.
   void run(const Storage& st, const solver::BrickGrid& grid, const std::vector<Index>& bricks, const solver::Wall& wall,
            std::vector<Index>& seeds, RestoreStats& stats, WorkerPool& pool);
 
  private:
+  LinkRowKernel filter_ = nullptr;
+  /// Runs of bricks consecutive along x (same brick row): one work item each, so the vector
+  /// filter sees whole lattice rows instead of one brick's width.
+  struct Span {
+    Index first_brick;
+    int count;
+  };
+  std::vector<Span> spans_;
   std::vector<std::vector<Index>> found_;
+  std::vector<std::vector<int>> flagged_;
   std::vector<RestoreStats> partial_;
 };
 

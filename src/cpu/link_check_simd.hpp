@@ -1,0 +1,63 @@
+#pragma once
+// The vector filter of the link check (cpu/link_check.cpp), N elements at a time: included by
+// simd_sse2.cpp (4-wide) and simd_avx2.cpp (8-wide). It only decides which elements the exact
+// scalar check looks at, so any lane it flags is checked again exactly; the arithmetic is
+// link_violation's, lane by lane, so both widths flag the same elements.
+#include <vector>
+
+#include "cpu/kernels.hpp"
+#include "cpu/simd.hpp"
+#include "solver/restore.hpp"
+
+namespace hpcm::cpu::simd {
+
+/// Largest violation per lane of the link from p (lower end) to q (upper end) along axis a.
+template <class V>
+inline V link_excess(const V (&p)[3], const V (&q)[3], V tau, int a) {
+  const V one = splat<V>(1.0f), k08 = splat<V>(0.8f);
+  const V min_d = one - k08 * tau, max_d = one + tau;
+  const V cap = splat<V>(0.5f) * (splat<V>(0.98f) - k08 * tau);
+  const V shear = tau < cap ? tau : cap;
+  V v = splat<V>(0.0f);
+  for (int b = 0; b < 3; ++b) {
+    const V d = q[b] - p[b];
+    const V e = b == a ? vmax(min_d - d, d - max_d) : vmax(d, -d) - shear;
+    v = vmax(v, e);
+  }
+  return v;
+}
+
+/// Elements j in [j0, j1) of half h of row (y, z) (all with a +x neighbour); appends those whose
+/// +x, +y or +z link or whose wall distance may exceed the restoration tolerance to `flagged`.
+/// Returns the first j it did not look at (the caller checks the rest exactly).
+template <class V>
+int link_check_row(const Storage& st, const solver::Wall& wall, int h, int y, int z, int j0, int j1,
+                   std::vector<int>& flagged) {
+  constexpr int N = sizeof(V) / sizeof(float);
+  const Layout& L = st.lay;
+  const Index k0 = L.row_start(h, y, z);
+  const Index ko = L.row_start(1 - h, y, z) + (h == 0 ? 0 : 1);  // +x neighbour of j
+  const Index sy = L.width[h], sz = static_cast<Index>(L.width[h]) * L.dims.y;
+  const bool has_y = y + 1 < L.dims.y, has_z = z + 1 < L.dims.z;
+  const V wlo[3] = {splat<V>(wall.lo[0]), splat<V>(wall.lo[1]), splat<V>(wall.lo[2])};
+  const V whi[3] = {splat<V>(wall.hi[0]), splat<V>(wall.hi[1]), splat<V>(wall.hi[2])};
+  const V tol = splat<V>(solver::kRestoreTolerance);
+  int j = j0;
+  for (; j + N <= j1; j += N) {
+    const Index k = k0 + j;
+    const V p[3] = {load<V>(st.p[0].data() + k), load<V>(st.p[1].data() + k), load<V>(st.p[2].data() + k)};
+    V worst = splat<V>(0.0f);
+    for (int b = 0; b < 3; ++b) worst = vmax(worst, vmax(wlo[b] - p[b], p[b] - whi[b]));
+    auto link = [&](Index kq, int a) {
+      const V q[3] = {load<V>(st.p[0].data() + kq), load<V>(st.p[1].data() + kq), load<V>(st.p[2].data() + kq)};
+      worst = vmax(worst, link_excess<V>(p, q, load<V>(st.link_tau[a].data() + k), a));
+    };
+    link(ko + j, 0);
+    if (has_y) link(k + sy, 1);
+    if (has_z) link(k + sz, 2);
+    for (unsigned bits = lane_bits<V>(worst > tol); bits; bits &= bits - 1) flagged.push_back(j + __builtin_ctz(bits));
+  }
+  return j;
+}
+
+}  // namespace hpcm::cpu::simd
