@@ -90,7 +90,7 @@ void SliceRenderer::init() {
   glBindBuffer(GL_ARRAY_BUFFER, 0);
 }
 
-void SliceRenderer::upload(int slot, int nu, int nv, const std::vector<Vec2f>& verts, const std::vector<Rgba>& cols) {
+void SliceRenderer::upload_positions(int slot, int nu, int nv, const std::vector<Vec2f>& verts) {
   Mesh& m = mesh_.at(static_cast<std::size_t>(slot));
   glBindVertexArray(m.vao);
   if (m.nu != nu || m.nv != nv) {
@@ -109,6 +109,13 @@ void SliceRenderer::upload(int slot, int nu, int nv, const std::vector<Vec2f>& v
   }
   glBindBuffer(GL_ARRAY_BUFFER, m.vbo_pos);
   glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(verts.size() * sizeof(Vec2f)), verts.data(), GL_STREAM_DRAW);
+  glBindBuffer(GL_ARRAY_BUFFER, 0);
+  glBindVertexArray(0);
+}
+
+void SliceRenderer::upload_colours(int slot, const std::vector<Rgba>& cols) {
+  Mesh& m = mesh_.at(static_cast<std::size_t>(slot));
+  glBindVertexArray(m.vao);
   glBindBuffer(GL_ARRAY_BUFFER, m.vbo_col);
   glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(cols.size() * sizeof(Rgba)), cols.data(), GL_STREAM_DRAW);
   glBindBuffer(GL_ARRAY_BUFFER, 0);

@@ -19,8 +19,11 @@ class SliceRenderer {
 
   /// Compiles the shaders and creates the buffers; throws hpcm::Error with the GL log.
   void init();
-  /// Uploads the vertices and colours of mesh `slot` (a Nu x Nv vertex grid).
-  void upload(int slot, int nu, int nv, const std::vector<Vec2f>& verts, const std::vector<Rgba>& cols);
+  /// Uploads the vertex positions of mesh `slot` (a Nu x Nv vertex grid; the index buffers are
+  /// rebuilt only when the grid size changes).
+  void upload_positions(int slot, int nu, int nv, const std::vector<Vec2f>& verts);
+  /// Uploads the vertex colours of mesh `slot` (one per vertex, after upload_positions).
+  void upload_colours(int slot, const std::vector<Rgba>& cols);
   /// Draws mesh `slot` into view rectangle `t` (window pixels); `fb_scale` = framebuffer
   /// pixels per window pixel; `win_h` window height. Optional wire-frame on top.
   void draw(int slot, const ViewTransform& t, float fb_scale_x, float fb_scale_y, float win_h, bool wire);
