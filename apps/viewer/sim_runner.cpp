@@ -156,6 +156,7 @@ void SimRunner::reset() {
           last_report_ = {};
           last_pos_.reset();
           last_prev_.reset();
+          positions_dirty_ = true;
           ++epoch_;
         }});
 }
@@ -167,6 +168,9 @@ void SimRunner::set_params(const Params& p) {
             // the backend) when thresholds, material points or anchors changed.
             const bool rebuild = materials_differ(p, sim_->params()) || p.solver.anchors != sim_->params().solver.anchors;
             sim_->set_params(p);
+            // New materials, anchors or bricks reload the backend (the state is carried over):
+            // download again instead of relying on the reload being exact.
+            positions_dirty_ = true;
             if (rebuild) {
               rebuild_model_copy();
               notice(Notice::Kind::Info, "materials rebuilt");
@@ -188,6 +192,7 @@ void SimRunner::set_scenario(std::optional<Scenario> s) {
           last_report_ = {};
           last_pos_.reset();
           last_prev_.reset();
+          positions_dirty_ = true;
           ++epoch_;
           running_ = true;
           budget_ = 0;
@@ -214,6 +219,7 @@ void SimRunner::replace(std::shared_ptr<Model> model, const Params& p, BackendKi
           last_report_ = {};
           last_pos_.reset();
           last_prev_.reset();
+          positions_dirty_ = true;
           ++epoch_;
           ++simulation_;
           notice(Notice::Kind::Info, done);
@@ -349,6 +355,7 @@ void SimRunner::loop() {
       running_ = false;
       budget_ = 0;
       target_frame_ = -1;
+      positions_dirty_ = true;  // the frame may have stopped half-way: show what is there
       notice(Notice::Kind::Error, std::string("simulation stopped: ") + e.what());
       publish(false);
     }
@@ -434,12 +441,19 @@ void SimRunner::publish(bool stepped) {
   f->running = running_;
   f->model = model_copy_;
   f->model_id = model_id_;
-  auto buf = acquire_buffer();
-  sim_->backend().download_positions(*buf);
-  f->prev = stepped ? last_pos_ : last_prev_;
-  f->pos = buf;
-  last_prev_ = f->prev;
-  last_pos_ = f->pos;
+  // Positions change only in a frame (and on reset or new data): tool moves, parameters and
+  // run/pause publish the same buffer again instead of downloading 12 bytes per element.
+  if (stepped || positions_dirty_ || !last_pos_) {
+    auto buf = acquire_buffer();
+    sim_->backend().download_positions(*buf);
+    last_prev_ = stepped ? last_pos_ : last_prev_;
+    last_pos_ = std::move(buf);
+    ++positions_id_;
+    positions_dirty_ = false;
+  }
+  f->pos = last_pos_;
+  f->prev = last_prev_;
+  f->positions_id = positions_id_;
   f->report = last_report_;
   f->params = sim_->params();
   f->backend = sim_->backend().kind();

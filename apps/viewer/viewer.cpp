@@ -403,7 +403,7 @@ void Viewer::update_meshes() {
     if (!v.visible) continue;
     v.slice = std::clamp(v.slice, 0, slice_count(m, v.plane) - 1);
     MeshInputs& in = v.mesh;
-    moved[p] = !in.valid || in.model_id != shown_->model_id || in.slice != v.slice || in.seq != shown_->seq;
+    moved[p] = !in.valid || in.model_id != shown_->model_id || in.slice != v.slice || in.positions != shown_->positions_id;
     if (moved[p]) {
       slice_positions(m, v.plane, v.slice, pos, v.verts);
       const auto sz = slice_size(m, v.plane);
@@ -433,7 +433,7 @@ void Viewer::update_meshes() {
       slice_colours(m, v.plane, v.slice, pos, prev, colour_, v.cols);
       renderer_->upload_colours(p, v.cols);
     }
-    in = {true, shown_->model_id, shown_->seq, v.slice, colour_.overlay, colour_.overlay_air, colour_};
+    in = {true, shown_->model_id, shown_->positions_id, v.slice, colour_.overlay, colour_.overlay_air, colour_};
   }
 }
 

@@ -61,7 +61,7 @@ class Viewer {
   struct MeshInputs {
     bool valid = false;
     std::uint64_t model_id = 0;  ///< PublishedFrame::model_id
-    std::uint64_t seq = 0;       ///< PublishedFrame::seq of the positions
+    std::uint64_t positions = 0;  ///< PublishedFrame::positions_id
     int slice = -1;
     Overlay seen_overlay = Overlay::None;
     bool seen_air = false;

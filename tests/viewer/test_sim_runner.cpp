@@ -187,6 +187,41 @@ TEST(ViewerSimRunner, ALimitedPullIsAnnouncedOncePerGrabWithItsLargestShortfall)
   EXPECT_EQ(count(runner.take_notices(), Notice::Kind::PullLimited), 0);  // said once
 }
 
+TEST(ViewerSimRunner, PositionsAreDownloadedAgainOnlyWhenTheyChanged) {
+  const Params p;
+  SimRunner runner(std::make_unique<Simulation>(phantom_model({20, 20, 12}, p), p), std::nullopt, "phantom");
+  runner.start(false);
+  const auto rest = runner.latest();
+  const Index centre = rest->reference_centre;
+  ASSERT_GE(centre, 0);
+
+  // Grab and tool moves while paused: new frames are published (the tool moved), the
+  // positions are the same buffer with the same id (nothing for the display to re-upload).
+  runner.grab(centre, 0);
+  runner.move_tool({0, -2.0f, 0});
+  auto f = wait_until(runner, [](const PublishedFrame& x) { return x.tool.requested.y == -2.0f; });
+  EXPECT_GT(f->seq, rest->seq);
+  EXPECT_EQ(f->positions_id, rest->positions_id);
+  EXPECT_EQ(f->pos.get(), rest->pos.get());
+
+  // A frame moves the tissue: a new download, a new id, and the old positions become X(t-1).
+  runner.step_frames(1);
+  const auto stepped = wait_frame(runner, 1);
+  EXPECT_NE(stepped->positions_id, rest->positions_id);
+  EXPECT_NE(stepped->pos.get(), rest->pos.get());
+  EXPECT_EQ(stepped->prev.get(), rest->pos.get());
+  EXPECT_NE(*stepped->pos, *rest->pos);
+
+  // A parameter change may reload the backend: downloaded again (same values), X(t-1) kept.
+  Params q = p;
+  q.dynamics.mode = DampingMode::Simple;
+  runner.set_params(q);
+  f = wait_until(runner, [](const PublishedFrame& x) { return x.params.dynamics.mode == DampingMode::Simple; });
+  EXPECT_NE(f->positions_id, stepped->positions_id);
+  EXPECT_EQ(*f->pos, *stepped->pos);
+  EXPECT_EQ(f->prev.get(), stepped->prev.get());
+}
+
 TEST(ViewerSimRunner, LockStepHandsOverEveryFrame) {
   const Params p;
   SimRunner runner(std::make_unique<Simulation>(phantom_model({20, 20, 12}, p), p), Scenario::paper_protocol(), "phantom");
