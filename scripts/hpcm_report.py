@@ -358,7 +358,8 @@ def write_report(out_md, d, curves, n, t2, t3, summary, warnings):
         if brief:
             L.append(f"- Scenario: {brief}")
     L.append(f"- Frames recorded after release: {n}")
-    L.append(f"- Inputs: `{os.path.abspath(d)}` (curves.csv, table2.csv, table3.csv, summary.json)")
+    where = "this folder" if os.path.abspath(d) == os.path.abspath(os.path.dirname(out_md) or ".") else f"`{os.path.abspath(d)}`"
+    L.append(f"- Inputs: {where} (curves.csv, table2.csv, table3.csv, summary.json)")
     L.append("")
     verdict = "all hold" if summary["all_hold"] else "**NOT all hold**"
     L.append(f"SPEC 8 behaviour checks: {verdict} "

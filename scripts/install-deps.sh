@@ -12,6 +12,7 @@ PKGS=(
   python3-dev pybind11-dev python3-numpy python3-pytest
   python3-nibabel python3-pydicom python3-pil plastimatch
   xvfb xauth
+  clang lld libclang-rt-14-dev libomp-14-dev  # libFuzzer harnesses (preset fuzz: clang, lld, OpenMP)
 )
 missing=()
 for p in "${PKGS[@]}"; do

@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -10,6 +11,8 @@
 #include <vector>
 
 #include "hpcm/config.hpp"
+#include "int_option.hpp"
+#include "memory_estimate.hpp"
 #if defined(HPCM_WITH_ITK)
 #include "hpcm/io.hpp"
 #endif
@@ -17,33 +20,53 @@
 namespace hpcm::cli {
 
 namespace {
-std::vector<long long> parse_ints(const std::string& s, const std::string& option, std::size_t count) {
+std::vector<long long> parse_ints(const std::string& s, const std::string& option, std::size_t count, long long lo,
+                                  long long hi) {
   std::vector<long long> out;
   std::stringstream ss(s);
   std::string item;
-  while (std::getline(ss, item, ',')) {
-    try {
-      std::size_t used = 0;
-      const long long v = std::stoll(item, &used);
-      if (used != item.size()) throw std::invalid_argument(item);
-      out.push_back(v);
-    } catch (const std::exception&) {
-      throw Error(option + " '" + s + "': '" + item + "' is not an integer");
-    }
-  }
-  if (out.size() != count)
+  while (std::getline(ss, item, ',')) out.push_back(parse_integer(item, option + " '" + s + "': value", lo, hi));
+  if (out.size() != count || (!s.empty() && s.back() == ','))
     throw Error(option + " '" + s + "': expected " + std::to_string(count) + " comma-separated integers");
   return out;
 }
+
+/// "--downsample,-f" -> "--downsample" (the name messages use).
+std::string option_label(const std::string& name) { return name.substr(0, name.find(',')); }
 }  // namespace
 
 Int3 parse_int3(const std::string& s, const std::string& option, int lo, int hi) {
-  const auto v = parse_ints(s, option, 3);
-  for (long long x : v)
-    if (x < lo || x > hi)
-      throw Error(option + " '" + s + "': " + std::to_string(x) + " is out of range [" + std::to_string(lo) + ", " +
-                  std::to_string(hi) + "]");
+  const auto v = parse_ints(s, option, 3, lo, hi);
   return {static_cast<int>(v[0]), static_cast<int>(v[1]), static_cast<int>(v[2])};
+}
+
+CLI::Option* add_int_option(CLI::App* cmd, const std::string& name, int& target, int lo, int hi, const std::string& desc) {
+  const std::string label = option_label(name);
+  return cmd
+      ->add_option_function<std::string>(
+          name, [&target, label, lo, hi](const std::string& v) { target = static_cast<int>(parse_integer(v, label, lo, hi)); },
+          desc + " [" + std::to_string(lo) + ", " + std::to_string(hi) + "]" +
+              (target >= lo && target <= hi ? " (default " + std::to_string(target) + ")" : ""))
+      ->type_name("INT");
+}
+
+CLI::Option* add_int_option(CLI::App* cmd, const std::string& name, std::optional<int>& target, int lo, int hi,
+                            const std::string& desc) {
+  const std::string label = option_label(name);
+  return cmd
+      ->add_option_function<std::string>(
+          name, [&target, label, lo, hi](const std::string& v) { target = static_cast<int>(parse_integer(v, label, lo, hi)); },
+          desc + " [" + std::to_string(lo) + ", " + std::to_string(hi) + "]")
+      ->type_name("INT");
+}
+
+CLI::Option* add_seed_option(CLI::App* cmd, const std::string& name, std::uint64_t& target, const std::string& desc) {
+  const std::string label = option_label(name);
+  return cmd
+      ->add_option_function<std::string>(
+          name, [&target, label](const std::string& v) { target = parse_u64(v, label); },
+          desc + " [0, 2^64-1] (default " + std::to_string(target) + ")")
+      ->type_name("INT");
 }
 
 void add_volume_options(CLI::App* cmd, VolumeSource& src) {
@@ -54,10 +77,30 @@ void add_volume_options(CLI::App* cmd, VolumeSource& src) {
   auto* in = cmd->add_option("--input", src.input, "CT volume (.nii, .nii.gz, .nrrd, .nhdr, .mha, .mhd) or DICOM directory");
   ph->excludes(in);
   in->excludes(ph);
-  cmd->add_option("--downsample", src.downsample, "Integer down-sampling factor per axis (block mean of HU), >= 1");
+  add_int_option(cmd, "--downsample", src.downsample, 1, 4096, "Integer down-sampling factor per axis (block mean of HU)");
   cmd->add_option("--roi", src.roi, "Crop x0,y0,z0,x1,y1,z1 in voxels of the input (upper bounds exclusive)");
   cmd->add_option("--series", src.series, "DICOM series instance UID (directories with several series)");
-  cmd->add_option("--seed", src.seed, "Phantom noise seed");
+  cmd->add_option("--dicom-duplicates", src.dicom_duplicates,
+                  "DICOM slices at the same position: error (default) | first (keep the lowest InstanceNumber)")
+      ->check(CLI::IsMember({"error", "first"}));
+  cmd->add_flag("--dicom-skip-unreadable", src.dicom_skip_unreadable,
+                "Skip files of a DICOM directory that are not readable DICOM (listed as a warning; gaps stay errors)");
+  add_seed_option(cmd, "--seed", src.seed, "Phantom noise seed");
+}
+
+void check_memory_before_load(const VolumeSource& src, double bytes_per_element) {
+  if (!src.input.empty()) return;  // file volumes: the reader checks its own memory, the lattice is checked after
+  const Int3 d = src.phantom.empty() ? src.default_phantom : parse_int3(src.phantom, "--phantom", 8, 4096);
+  const std::string what = "--phantom " + std::to_string(d.x) + "," + std::to_string(d.y) + "," + std::to_string(d.z);
+  // Without --roi/--downsample the phantom is the lattice; otherwise only its volume (4 bytes per
+  // voxel, twice while cropping or down-sampling) exists at full size.
+  const bool reduced = !src.roi.empty() || src.downsample > 1;
+  check_lattice_memory(d, reduced ? 8.0 : bytes_per_element, what);
+}
+
+void check_lattice_fits(const Volume& lattice, const VolumeSource& src, double bytes_per_element) {
+  const std::string what = src.input.empty() ? std::string("the phantom lattice") : src.input;
+  check_lattice_memory(lattice.dims, bytes_per_element, what);
 }
 
 Volume load_volume_full(const VolumeSource& src) {
@@ -65,6 +108,8 @@ Volume load_volume_full(const VolumeSource& src) {
 #if defined(HPCM_WITH_ITK)
     io::ReadOptions ro;
     ro.series_uid = src.series;
+    ro.dicom_duplicates = src.dicom_duplicates == "first" ? io::DicomDuplicates::First : io::DicomDuplicates::Error;
+    ro.dicom_skip_unreadable = src.dicom_skip_unreadable;
     return io::read_volume_as_stored(src.input, ro);
 #else
     throw Error("--input " + src.input + ": hpcm was built without ITK, so only --phantom is available");
@@ -83,7 +128,7 @@ Volume crop_to_roi_and_check_factor(Volume v, const VolumeSource& src, Int3* roi
   *roi_lo = {0, 0, 0};
   *roi_hi = v.dims;
   if (!src.roi.empty()) {
-    const auto r = parse_ints(src.roi, "--roi", 6);
+    const auto r = parse_ints(src.roi, "--roi", 6, 0, 2147483647);
     *roi_lo = Int3{int(r[0]), int(r[1]), int(r[2])};
     *roi_hi = Int3{int(r[3]), int(r[4]), int(r[5])};
     v = crop(v, *roi_lo, *roi_hi);
@@ -136,6 +181,12 @@ void make_output_dir(const std::string& dir, const std::string& option) {
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec || !std::filesystem::is_directory(dir)) throw Error(option + " " + dir + ": cannot create folder (" + ec.message() + ")");
+}
+
+void require_finite(double v, const std::string& what) {
+  if (!std::isfinite(v))
+    throw Error(what + " is " + (std::isnan(v) ? "NaN" : "infinite") +
+                "; hpcm writes no non-finite number (check the parameters: docs/parameters.md, stability)");
 }
 
 void write_text_file(const std::string& path, const std::string& text) {

@@ -11,6 +11,8 @@
 #include <thread>
 
 #include "cli_common.hpp"
+#include "memory_estimate.hpp"
+#include "output_dir.hpp"
 
 namespace hpcm::cli {
 
@@ -117,20 +119,15 @@ void register_bench(CLI::App& app) {
       "bench", "Time the paper protocol per stage (Table 3: ChainMail, Inertia, Snapshot, SimTotal; medians over frames)");
   add_volume_options(cmd, o->source);
   cmd->add_option("--backend", o->backend, "cpu | cuda")->capture_default_str();
-  cmd->add_option("--frames", o->frames, "Frames per condition (the protocol is 150; more frames run idle)")->capture_default_str();
+  add_int_option(cmd, "--frames", o->frames, 1, 1'000'000, "Frames per condition (the protocol is 150; more frames run idle)");
   cmd->add_option("--dynamics", o->dynamics, "Conditions to time: all | none (A) | simple (B) | viscoelastic (C)")
       ->capture_default_str();
   cmd->add_option("--params", o->params, "Parameter file (TOML)");
-  cmd->add_option("--warmup", o->warmup, "Untimed warm-up frames before the timed runs")->capture_default_str();
-  cmd->add_option("--probe-reps", o->probe_reps, "Repetitions of the GPU bandwidth probe")->capture_default_str();
+  add_int_option(cmd, "--warmup", o->warmup, 0, 10'000, "Untimed warm-up frames before the timed runs");
+  add_int_option(cmd, "--probe-reps", o->probe_reps, 1, 10'000, "Repetitions of the GPU bandwidth probe");
   cmd->add_flag("--speeds", o->speeds, "Include the per-tissue speed reductions in the timed frames");
   cmd->add_option("--out", o->out, "Output folder for bench.csv, bench_frames.csv, bench.json")->capture_default_str();
   cmd->callback([o] {
-    if (o->frames < 1 || o->frames > 1000000)
-      throw Error("--frames " + std::to_string(o->frames) + " is out of range [1, 1000000]");
-    if (o->warmup < 0 || o->warmup > 10000) throw Error("--warmup " + std::to_string(o->warmup) + " is out of range [0, 10000]");
-    if (o->probe_reps < 1 || o->probe_reps > 10000)
-      throw Error("--probe-reps " + std::to_string(o->probe_reps) + " is out of range [1, 10000]");
     const BackendKind bk = parse_backend(o->backend, "--backend");
     std::vector<DampingMode> modes;
     if (o->dynamics == "all")
@@ -142,8 +139,11 @@ void register_bench(CLI::App& app) {
       if (!cuda_available(&why)) throw Error("--backend cuda: no CUDA device: " + why);
     }
     const Params p = load_params_option(o->params);
-    make_output_dir(o->out, "--out");
+    check_memory_before_load(o->source, kRunBytesPerElement);
+    StagedDir out(o->out, "--out");
+    const std::string dir = out.path();
     const Volume v = load_volume(o->source);
+    check_lattice_fits(v, o->source, kRunBytesPerElement);
     const Model model = build_model(v, p);
     const Index n = model.size();
     const std::string source =
@@ -221,17 +221,19 @@ void register_bench(CLI::App& app) {
                     c.total.mean, c.total_deform.median, c.total_idle.median, eps);
       csv << buf << bw << "\n";
     }
-    write_text_file(o->out + "/bench.csv", csv.str());
+    write_text_file(dir + "/bench.csv", csv.str());
     std::ostringstream fcsv;
-    fcsv << "condition,frame,stage,chainmail_ms,inertia_ms,snapshot_ms,sim_total_ms,active_bricks,propagate_sweeps,relax_sweeps\n";
+    fcsv << "condition,frame,stage,chainmail_ms,inertia_ms,snapshot_ms,sim_total_ms,active_bricks,propagate_sweeps,relax_sweeps,"
+            "active_elements\n";
     for (const auto& c : res)
       for (const auto& r : c.frames) {
-        std::snprintf(buf, sizeof buf, "%s,%d,%s,%.6f,%.6f,%.6f,%.6f,%lld,%d,%d\n", c.label.c_str(), r.frame,
+        std::snprintf(buf, sizeof buf, "%s,%d,%s,%.6f,%.6f,%.6f,%.6f,%lld,%d,%d,%lld\n", c.label.c_str(), r.frame,
                       r.deform ? "deform" : "idle", r.chainmail_ms, r.inertia_ms, r.snapshot_ms, r.sim_total_ms,
-                      static_cast<long long>(r.active_bricks), r.propagate_sweeps, r.relax_sweeps);
+                      static_cast<long long>(r.active_bricks), r.propagate_sweeps, r.relax_sweeps,
+                      static_cast<long long>(r.active_elements));
         fcsv << buf;
       }
-    write_text_file(o->out + "/bench_frames.csv", fcsv.str());
+    write_text_file(dir + "/bench_frames.csv", fcsv.str());
     nlohmann::json js;
     js["command"] = "bench";
     js["date"] = now_utc();
@@ -270,8 +272,10 @@ void register_bench(CLI::App& app) {
       js["bandwidth"] = "n/a (" + std::string(backend_name(bk)) + ")";
       js["device_bytes_per_element"] = "n/a (" + std::string(backend_name(bk)) + ")";
     }
-    write_text_file(o->out + "/bench.json", js.dump(2) + "\n");
-    std::printf("wrote %s/bench.csv, %s/bench_frames.csv, %s/bench.json\n", o->out.c_str(), o->out.c_str(), o->out.c_str());
+    write_text_file(dir + "/bench.json", js.dump(2) + "\n");
+    out.commit();
+    const char* d = out.final_path().c_str();
+    std::printf("wrote %s/bench.csv, %s/bench_frames.csv, %s/bench.json\n", d, d, d);
   });
 }
 

@@ -11,6 +11,10 @@
 #include "cli_common.hpp"
 #include "hpcm/config.hpp"
 #include "hpcm/experiment.hpp"
+#include "memory_estimate.hpp"
+#include "output_dir.hpp"
+#include "run_options.hpp"
+#include "spawn.hpp"
 
 namespace hpcm::cli {
 
@@ -72,30 +76,39 @@ void register_experiment(CLI::App& app) {
   add_volume_options(cmd, o->source);
   cmd->add_option("--params", o->params, "Parameter file (TOML)");
   cmd->add_option("--scenario", o->scenario, "Scenario file (TOML) instead of the paper protocol");
-  cmd->add_option("--settle-frames", o->settle, "Idle frames after the scenario for the SPEC 8.5 check, >= 1")->capture_default_str();
+  add_int_option(cmd, "--settle-frames", o->settle, 1, 10'000'000, "Idle frames after the scenario for the settling check");
   cmd->add_option("--backend", o->backend, "cpu | cuda")->capture_default_str();
-  cmd->add_option("--out", o->out, "Output folder")->required();
+  cmd->add_option("--out", o->out, "Output folder (written as OUT.incomplete, renamed to OUT when it finishes)")->required();
   cmd->add_flag("--no-report", o->no_report, "Write the CSV/JSON files only (no figures, no report.md)");
   cmd->callback([o] {
-    if (o->settle < 1) throw Error("--settle-frames " + std::to_string(o->settle) + " is out of range: must be >= 1");
     const Params p = load_params_option(o->params);
     ExperimentOptions eo;
     eo.backend = parse_backend(o->backend, "--backend");
     eo.settle_frames = o->settle;
     if (!o->scenario.empty() && o->scenario != "paper") eo.scenario = config::load_scenario(o->scenario);
+    const std::string sc_label = scenario_label(o->scenario);
     std::string script;
     if (!o->no_report) {
       script = find_report_script();
       if (script.empty()) throw Error("report script hpcm_report.py not found (set HPCM_REPORT_SCRIPT or use --no-report)");
     }
-    make_output_dir(o->out, "--out");
+    check_memory_before_load(o->source, kExperimentBytesPerElement);
+    StagedDir out(o->out, "--out");
+    const std::string dir = out.path();
     const Volume v = load_volume(o->source);
+    check_lattice_fits(v, o->source, kExperimentBytesPerElement);
     const Model m = build_model(v, p);
     if (want_progress())
       eo.progress = [](int c, int done, int total) {
         if (done % 10 == 0 || done == total) progress_bar(std::string("condition ") + char('A' + c), done, total);
       };
-    const ExperimentResult r = run_experiment(m, p, eo);
+    ExperimentResult r;
+    try {
+      eo.scenario.validate(m);
+      r = run_experiment(m, p, eo);
+    } catch (const Error& e) {
+      rethrow_in_scenario(e, eo.scenario, sc_label, -1);
+    }
 
     std::ostringstream curves, t2, t3;
     curves << "condition,frame_after_release,tissue,mean_speed,max_speed\n";
@@ -116,8 +129,17 @@ void register_experiment(CLI::App& app) {
     js["params"] = params_json(p);
     char buf[256];
     for (const auto& c : r.conditions) {
+      const std::string cond = "condition " + c.label;
+      for (int t = 0; t < kTissueCount; ++t) {
+        require_finite(c.initial[t], cond + " initial speed of " + tissue_name(t));
+        require_finite(c.peak[t], cond + " peak speed of " + tissue_name(t));
+        require_finite(c.auc[t], cond + " AUC of " + tissue_name(t));
+      }
+      require_finite(c.settle_max_speed, cond + " settle_max_speed");
       for (int f = r.release_frame; f < static_cast<int>(c.frames.size()); ++f)
         for (int t = 0; t < kTissueCount; ++t) {
+          require_finite(c.frames[f].mean_speed[t], cond + " frame " + std::to_string(f) + " mean speed");
+          require_finite(c.frames[f].max_speed[t], cond + " frame " + std::to_string(f) + " max speed");
           std::snprintf(buf, sizeof buf, "%s,%d,%s,%.9g,%.9g\n", c.label.c_str(), f - r.release_frame, tissue_name(t),
                         c.frames[f].mean_speed[t], c.frames[f].max_speed[t]);
           curves << buf;
@@ -137,6 +159,7 @@ void register_experiment(CLI::App& app) {
       nlohmann::json track = nlohmann::json::array();
       for (std::size_t f = 0; f < c.centre_track.size(); ++f) {
         const Vec3 d = c.centre_track[f] - c.centre_rest;
+        for (float x : {d.x, d.y, d.z}) require_finite(x, cond + " grab centre displacement");
         track.push_back({d.x, d.y, d.z});
       }
       jc["grab_centre_displacement"] = track;
@@ -145,19 +168,25 @@ void register_experiment(CLI::App& app) {
       js["checks"][ch.name] = {{"holds", ch.holds}, {"value", ch.value}, {"threshold", ch.threshold}, {"spec", ch.spec},
                                {"description", ch.description}};
     js["all_hold"] = r.all_hold();
-    write_text_file(o->out + "/curves.csv", curves.str());
-    write_text_file(o->out + "/table2.csv", t2.str());
-    write_text_file(o->out + "/table3.csv", t3.str());
-    write_text_file(o->out + "/summary.json", js.dump(2) + "\n");
+    write_text_file(dir + "/curves.csv", curves.str());
+    write_text_file(dir + "/table2.csv", t2.str());
+    write_text_file(dir + "/table3.csv", t3.str());
+    write_text_file(dir + "/summary.json", js.dump(2) + "\n");
+    out.keep_on_failure();
     if (!o->no_report) {
-      const std::string cmdline = "/usr/bin/python3 '" + script + "' '" + o->out + "'";
-      const int rc = std::system(cmdline.c_str());
-      if (rc != 0) throw Error("report script failed (" + cmdline + "); the CSV and JSON files are written");
+      // An argument vector, never a shell: no character of the paths can run a command.
+      const std::vector<std::string> argv = {"/usr/bin/python3", script, "--", dir};
+      const SpawnResult rc = run_program(argv, true);
+      if (!rc.exited || rc.status != 0)
+        throw Error("report script failed (" + describe_command(argv) + ": " +
+                    (rc.exited ? "exit status " : "signal ") + std::to_string(rc.status) +
+                    "); the CSV and JSON files are in " + dir);
     }
+    out.commit();
     int held = 0;
     for (const auto& ch : r.checks) held += ch.holds;
     std::printf("experiment: %lld elements, checks %d/%zu hold; wrote %s/{curves.csv,table2.csv,table3.csv,summary.json%s}\n",
-                static_cast<long long>(m.size()), held, r.checks.size(), o->out.c_str(),
+                static_cast<long long>(m.size()), held, r.checks.size(), out.final_path().c_str(),
                 o->no_report ? "" : ",figure3.png,figure4.png,report.md");
     for (const auto& ch : r.checks)
       if (!ch.holds) std::printf("  does not hold: %s (SPEC %s): value %.6g, threshold %.6g\n", ch.name.c_str(), ch.spec.c_str(), ch.value, ch.threshold);

@@ -2,6 +2,7 @@
 #include <cstdio>
 
 #include "cli_common.hpp"
+#include "memory_estimate.hpp"
 #if defined(HPCM_WITH_ITK)
 #include "hpcm/io.hpp"
 #endif
@@ -20,7 +21,7 @@ void register_phantom(CLI::App& app) {
   auto o = std::make_shared<Opts>();
   auto* cmd = app.add_subcommand("phantom", "Generate the synthetic abdominal phantom");
   cmd->add_option("--size", o->size, "NX,NY,NZ, each in [8, 4096]")->capture_default_str();
-  cmd->add_option("--seed", o->seed, "Noise seed")->capture_default_str();
+  add_seed_option(cmd, "--seed", o->seed, "Noise seed");
   cmd->add_option("--noise", o->noise, "Noise standard deviation in HU, [0, 200]")->capture_default_str();
   cmd->add_flag("--summary", o->summary, "Print dims and the element count per tissue class");
   cmd->add_option("--params", o->params, "Parameter file (tissue thresholds for the summary)");
@@ -31,6 +32,17 @@ void register_phantom(CLI::App& app) {
     po.seed = o->seed;
     po.noise_hu = o->noise;
     if (!(o->noise >= 0 && o->noise <= 200)) throw Error("--noise " + std::to_string(o->noise) + " is out of range [0, 200]");
+    const bool summary = o->summary || o->out.empty();
+    const Params p = summary ? load_params_option(o->params) : Params{};
+    if (!o->out.empty()) {
+#if defined(HPCM_WITH_ITK)
+      io::check_output_path(o->out);  // before generating: a bad destination fails at once
+#else
+      throw Error("--out: hpcm was built without ITK, cannot write volumes");
+#endif
+    }
+    // The volume (4 bytes per voxel, twice while writing) and, for the summary, the model.
+    check_lattice_memory(po.dims, summary ? kRunBytesPerElement : 8.0, "--size " + o->size);
     const Volume v = make_phantom(po);
     if (!o->out.empty()) {
 #if defined(HPCM_WITH_ITK)
@@ -40,8 +52,7 @@ void register_phantom(CLI::App& app) {
       throw Error("--out: hpcm was built without ITK, cannot write volumes");
 #endif
     }
-    if (o->summary || o->out.empty()) {
-      const Params p = load_params_option(o->params);
+    if (summary) {
       const Model m = build_model(v, p);
       std::printf("dims %d x %d x %d (%lld elements), spacing %.4g x %.4g x %.4g mm\n", v.dims.x, v.dims.y, v.dims.z,
                   static_cast<long long>(m.size()), v.spacing[0], v.spacing[1], v.spacing[2]);

@@ -1,10 +1,11 @@
 // hpcm run: play a scenario (default: the paper protocol) and write per-frame metrics.
 #include <cstdio>
-#include <fstream>
-#include <sstream>
+#include <optional>
 
 #include "cli_common.hpp"
 #include "hpcm/config.hpp"
+#include "memory_estimate.hpp"
+#include "output_dir.hpp"
 #include "run_options.hpp"
 
 namespace hpcm::cli {
@@ -14,11 +15,25 @@ std::string frames_csv_header() {
   for (int t = 0; t < kTissueCount; ++t) h += std::string(",mean_speed_") + tissue_name(t);
   for (int t = 0; t < kTissueCount; ++t) h += std::string(",max_speed_") + tissue_name(t);
   h += ",inertia_ms,snapshot_ms,propagate_sweeps,relax_sweeps";
-  h += ",requested_offset,tool_limited,restored_links,restore_violation,min_cell_jacobian,folded_cells\n";
+  h += ",requested_offset,tool_limited,restored_links,restore_violation,min_cell_jacobian,folded_cells,active_elements\n";
   return h;
 }
 
 std::string frames_csv_row(const FrameReport& r) {
+  const std::string at = "frames.csv frame " + std::to_string(r.frame) + ": ";
+  require_finite(r.grab_offset, at + "grab_offset");
+  require_finite(r.max_link_violation, at + "max_link_violation");
+  require_finite(r.chainmail_ms, at + "chainmail_ms");
+  require_finite(r.sim_total_ms, at + "sim_total_ms");
+  require_finite(r.inertia_ms, at + "inertia_ms");
+  require_finite(r.snapshot_ms, at + "snapshot_ms");
+  require_finite(r.requested_offset, at + "requested_offset");
+  require_finite(r.restore_violation, at + "restore_violation");
+  require_finite(r.min_cell_jacobian, at + "min_cell_jacobian");
+  for (int t = 0; t < kTissueCount; ++t) {
+    require_finite(r.mean_speed[t], at + "mean_speed_" + tissue_name(t));
+    require_finite(r.max_speed[t], at + "max_speed_" + tissue_name(t));
+  }
   char buf[256];
   std::string s;
   std::snprintf(buf, sizeof buf, "%d,%s,%.6g,%lld,%lld,%.6g,%.6f,%.6f", r.frame, r.deform ? "deform" : "idle", r.grab_offset,
@@ -35,9 +50,9 @@ std::string frames_csv_row(const FrameReport& r) {
   }
   std::snprintf(buf, sizeof buf, ",%.6f,%.6f,%d,%d", r.inertia_ms, r.snapshot_ms, r.propagate_sweeps, r.relax_sweeps);
   s += buf;
-  std::snprintf(buf, sizeof buf, ",%.6g,%d,%lld,%.6g,%.6g,%lld\n", r.requested_offset, r.tool_limited ? 1 : 0,
+  std::snprintf(buf, sizeof buf, ",%.6g,%d,%lld,%.6g,%.6g,%lld,%lld\n", r.requested_offset, r.tool_limited ? 1 : 0,
                 static_cast<long long>(r.restored_links), r.restore_violation, r.min_cell_jacobian,
-                static_cast<long long>(r.folded_cells));
+                static_cast<long long>(r.folded_cells), static_cast<long long>(r.active_elements));
   return s + buf;
 }
 
@@ -53,6 +68,57 @@ Scenario resolve_scenario(const RunOptions& o) {
   return config::load_scenario(o.scenario);
 }
 
+std::string scenario_label(const std::string& path) {
+  return path.empty() || path == "paper" ? std::string("the paper protocol") : "scenario " + path;
+}
+
+void rethrow_in_scenario(const Error& e, const Scenario& sc, const std::string& label, int frame) {
+  std::string where = label;
+  for (std::size_t k = 0; k < sc.grabs.size() && frame >= 0; ++k) {
+    const GrabAction& g = sc.grabs[k];
+    if (frame < g.start || frame > g.start + g.release) continue;
+    where += ", grab[" + std::to_string(k) + "]";
+    // Keyframe segment that frame lies in (offsets are reached at the end of relative frame r).
+    const int t = frame - g.start + 1;
+    for (std::size_t j = 0; j < g.path.size(); ++j)
+      if (t <= g.path[j].frame || j + 1 == g.path.size()) {
+        where += j == 0 ? ", keyframes[0]" : ", keyframes[" + std::to_string(j - 1) + "] to [" + std::to_string(j) + "]";
+        break;
+      }
+    break;
+  }
+  if (frame >= 0) where += ", frame " + std::to_string(frame);
+  throw Error(where + ": " + e.what());
+}
+
+namespace {
+
+/// frames.csv written row by row (flushed), so a killed run keeps the frames it computed.
+class FramesCsv {
+ public:
+  explicit FramesCsv(const std::string& path) : path_(path), f_(std::fopen(path.c_str(), "w")) {
+    if (!f_) throw Error(path + ": cannot open for writing");
+    put(frames_csv_header());
+  }
+  ~FramesCsv() {
+    if (f_) std::fclose(f_);
+  }
+  void put(const std::string& line) {
+    if (std::fputs(line.c_str(), f_) < 0 || std::fflush(f_) != 0) throw Error(path_ + ": write failed (disk full?)");
+  }
+  void close() {
+    const int rc = std::fclose(f_);
+    f_ = nullptr;
+    if (rc != 0) throw Error(path_ + ": write failed (disk full?)");
+  }
+
+ private:
+  std::string path_;
+  std::FILE* f_;
+};
+
+}  // namespace
+
 void register_run(CLI::App& app) {
   auto o = std::make_shared<RunOptions>();
   auto* cmd = app.add_subcommand("run", "Play a scenario (default: the paper protocol) and write DIR/frames.csv");
@@ -60,42 +126,69 @@ void register_run(CLI::App& app) {
   cmd->add_option("--dynamics", o->dynamics, "Velocity layer: none (A) | simple (B) | viscoelastic (C); overrides --params");
   cmd->add_option("--params", o->params, "Parameter file (TOML, see `hpcm params --defaults`)");
   cmd->add_option("--scenario", o->scenario, "Scenario file (TOML) or 'paper' (default)");
-  cmd->add_option("--frames", o->frames, "Frames to run (default: the scenario's length; more frames run idle)");
+  add_int_option(cmd, "--frames", o->frames, 1, 10'000'000, "Frames to run (default: the scenario's length; more frames run idle)");
   cmd->add_option("--backend", o->backend, "cpu | cuda")->capture_default_str();
-  cmd->add_option("--out", o->out, "Output folder")->required();
+  cmd->add_option("--out", o->out, "Output folder (written as OUT.incomplete, renamed to OUT when the run finishes)")->required();
   cmd->add_flag("--no-link-check", o->no_link_check, "Skip the O(N) max_link_violation measurement per frame");
   add_export_options(cmd, *o);
   cmd->callback([o] {
-    if (o->frames_given() && o->frames < 1)
-      throw Error("--frames " + std::to_string(o->frames) + " is out of range: must be >= 1");
+    // Every option and input file is checked before anything is created or simulated.
     const BackendKind bk = parse_backend(o->backend, "--backend");
     const Params p = resolve_params(*o);
     const Scenario sc = resolve_scenario(*o);
-    make_output_dir(o->out, "--out");
+    const std::string sc_label = scenario_label(o->scenario);
+    if (o->export_every > 0 && o->export_dir.empty()) throw Error("--export-every needs --export DIR");
+    check_memory_before_load(o->source, kRunBytesPerElement);
+    StagedDir out(o->out, "--out");
+    std::optional<StagedDir> export_dir;
+    RunOptions ro = *o;
+    if (!o->export_dir.empty()) {
+      export_dir.emplace(o->export_dir, "--export");
+      ro.export_dir = export_dir->path();
+      ro.export_shown = export_dir->final_path();
+    }
+
     const Volume v = load_volume(o->source);
+    check_lattice_fits(v, o->source, kRunBytesPerElement);
     Simulation sim(build_model(v, p), p, bk);
-    ScenarioPlayer player(sc, sim);
-    const int frames = o->frames_given() ? o->frames : sc.frames;
-    ExportSession exporter(*o, sim);
-    std::ostringstream csv;
-    csv << frames_csv_header();
+    std::optional<ScenarioPlayer> player;
+    try {
+      player.emplace(sc, sim);
+    } catch (const Error& e) {
+      rethrow_in_scenario(e, sc, sc_label, -1);
+    }
+    const int frames = o->frames.value_or(sc.frames);
+    ExportSession exporter(ro, sim);
+    FramesCsv csv(out.path() + "/frames.csv");
+    out.keep_on_failure();
     StepOptions so;
     so.link_violation = !o->no_link_check;
     so.cell_jacobian = !o->no_link_check;
     const bool progress = want_progress();
     float worst = 0;
-    for (int f = 0; f < frames; ++f) {
-      const FrameReport r = player.done() ? sim.step(so) : player.step(so);
-      worst = std::max(worst, r.max_link_violation);
-      csv << frames_csv_row(r);
-      exporter.after_frame(f, frames);
-      if (progress) progress_bar("run", f + 1, frames);
+    try {
+      for (int f = 0; f < frames; ++f) {
+        FrameReport r;
+        try {
+          r = player->done() ? sim.step(so) : player->step(so);
+        } catch (const Error& e) {
+          rethrow_in_scenario(e, sc, sc_label, f);
+        }
+        worst = std::max(worst, r.max_link_violation);
+        csv.put(frames_csv_row(r));
+        exporter.after_frame(f, frames);
+        if (progress) progress_bar("run", f + 1, frames);
+      }
+      csv.close();
+      exporter.finish();
+    } catch (const Error& e) {
+      throw Error(std::string(e.what()) + "\n  the frames computed so far are in " + out.path() + "/frames.csv");
     }
-    write_text_file(o->out + "/frames.csv", csv.str());
-    exporter.finish();
+    if (export_dir) export_dir->commit();
+    out.commit();
     std::printf("%d frames, %lld elements, %s, dynamics %s: wrote %s/frames.csv", frames,
                 static_cast<long long>(sim.model().size()), backend_name(bk), damping_mode_name(p.dynamics.mode),
-                o->out.c_str());
+                out.final_path().c_str());
     if (so.link_violation) std::printf(" (max link violation %.3g)", worst);
     std::printf("\n");
   });

@@ -50,7 +50,7 @@ void ExportSession::finish() {
   if (o_.export_dir.empty()) return;
   write_frame("final", true);
   std::printf("exported to %s: displacement_final.nii.gz/.nrrd (mm), deformed_final%s, labels.nii.gz + labels.ctbl\n",
-              o_.export_dir.c_str(), io::deformed_extension(input_).c_str());
+              (o_.export_shown.empty() ? o_.export_dir : o_.export_shown).c_str(), io::deformed_extension(input_).c_str());
 #endif
 }
 

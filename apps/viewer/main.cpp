@@ -5,6 +5,7 @@
 #include <iostream>
 
 #include "hpcm/hpcm.hpp"
+#include "memory_estimate.hpp"
 #include "options.hpp"
 #include "viewer.hpp"
 
@@ -95,14 +96,22 @@ int main(int argc, char** argv) {
     } else {
       PhantomOptions po;
       po.dims = o.phantom.value_or(Int3{96, 96, 64});
+      cli::check_lattice_memory(po.dims, cli::kViewerBytesPerElement, "--phantom");
       po.seed = o.seed;
       po.noise_hu = o.noise_hu;
       v = make_phantom(po);
       s.source = "phantom " + std::to_string(po.dims.x) + "x" + std::to_string(po.dims.y) + "x" +
                  std::to_string(po.dims.z) + " (seed " + std::to_string(po.seed) + ")";
     }
+    cli::check_lattice_memory(v.dims, cli::kViewerBytesPerElement, o.input.empty() ? "--phantom" : o.input);
     s.model = build_model(v, s.params);
-    if (s.scenario && !(s.scenario->name == "none" && s.scenario->grabs.empty())) s.scenario->validate(s.model);
+    if (s.scenario && !(s.scenario->name == "none" && s.scenario->grabs.empty())) {
+      try {
+        s.scenario->validate(s.model);
+      } catch (const Error& e) {
+        throw Error("--scenario " + o.scenario + ": " + e.what());  // name the file, not only the grab
+      }
+    }
 
     Viewer viewer(o, std::move(s));
     return viewer.run();

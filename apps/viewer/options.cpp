@@ -5,14 +5,21 @@
 #include <cstdio>
 #include <iostream>
 #include <sstream>
+#include <vector>
+
+#include "int_option.hpp"
 
 namespace hpcm::viewer {
 
-Int3 parse_int3(const std::string& s, const std::string& what) {
-  int v[3];
-  char tail = 0;
-  if (std::sscanf(s.c_str(), "%d,%d,%d%c", &v[0], &v[1], &v[2], &tail) != 3)
+Int3 parse_int3(const std::string& s, const std::string& what, int lo, int hi) {
+  std::vector<std::string> items;
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, ',')) items.push_back(item);
+  if (items.size() != 3 || s.empty() || s.back() == ',')
     throw Error(what + ": expected three integers NX,NY,NZ, got '" + s + "'");
+  int v[3];
+  for (int i = 0; i < 3; ++i) v[i] = static_cast<int>(cli::parse_integer(items[i], what + " '" + s + "': value", lo, hi));
   return {v[0], v[1], v[2]};
 }
 
@@ -30,10 +37,11 @@ int parse_options(int argc, char** argv, Options& o) {
       ->check(CLI::Range(1, 64));
   auto* ph = app.add_option("--phantom", phantom, "Built-in phantom of NX,NY,NZ elements (default 96,96,64)");
   in->excludes(ph);
-  app.add_option("--seed", o.seed, "Phantom noise seed");
+  std::string seed;
+  app.add_option("--seed", seed, "Phantom noise seed, [0, 2^64-1]");
   app.add_option("--noise", o.noise_hu, "Phantom noise standard deviation in HU, [0, 200]")->check(CLI::Range(0.0, 200.0));
   app.add_option("--params,-p", o.params, "TOML parameter file (see hpcm params --defaults)");
-  app.add_option("--scenario", o.scenario, "Scenario: TOML file, 'paper' (SPEC 7 paper protocol) or 'none'");
+  app.add_option("--scenario", o.scenario, "Scenario: TOML file, 'paper' (the paper's protocol: pull the skin 6 cells anterior over 20 frames, hold 10, release, 120 frames) or 'none'");
   app.add_option("--backend", o.backend, "cpu or cuda");
   app.add_option("--mode", o.mode, "Damping mode override: none|simple|viscoelastic (or A|B|C)");
   app.add_option("--radius", o.radius, "Grab radius override in lattice units, (0, 64]")->check(CLI::Range(0.0, 64.0));
@@ -82,18 +90,18 @@ int parse_options(int argc, char** argv, Options& o) {
     return rc;
   }
   try {
-    if (!phantom.empty()) o.phantom = parse_int3(phantom, "--phantom");
+    if (!seed.empty()) o.seed = cli::parse_u64(seed, "--seed");
+    if (!phantom.empty()) o.phantom = parse_int3(phantom, "--phantom", 8, 4096);
     if (!slices.empty()) {
-      const Int3 s = parse_int3(slices, "--slices");
+      const Int3 s = parse_int3(slices, "--slices", -1, 1 << 20);
       o.slices = {s.x, s.y, s.z};
     }
     if (!size.empty()) {
-      int w = 0, h = 0;
-      char tail = 0;
-      if (std::sscanf(size.c_str(), "%dx%d%c", &w, &h, &tail) != 2 || w < 320 || h < 240 || w > 16384 || h > 16384)
+      const auto x = size.find('x');
+      if (x == std::string::npos)
         throw Error("--size: expected WxH with 320 <= W <= 16384 and 240 <= H <= 16384, got '" + size + "'");
-      o.width = w;
-      o.height = h;
+      o.width = static_cast<int>(cli::parse_integer(size.substr(0, x), "--size width", 320, 16384));
+      o.height = static_cast<int>(cli::parse_integer(size.substr(x + 1), "--size height", 240, 16384));
     }
   } catch (const Error& e) {
     std::cerr << "hpcm-viewer: " << e.what() << "\n";

@@ -52,7 +52,7 @@ struct Options {
 /// non-zero after a usage error, with the message already printed).
 int parse_options(int argc, char** argv, Options& o);
 
-/// "NX,NY,NZ" -> Int3; throws hpcm::Error naming `what` unless three integers.
-Int3 parse_int3(const std::string& s, const std::string& what);
+/// "A,B,C" -> Int3, each an exact integer in [lo, hi]; throws hpcm::Error naming `what`.
+Int3 parse_int3(const std::string& s, const std::string& what, int lo = -2147483647 - 1, int hi = 2147483647);
 
 }  // namespace hpcm::viewer

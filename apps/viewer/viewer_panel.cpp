@@ -250,7 +250,7 @@ void Viewer::panel_views() {
 
 bool Viewer::panel_solver_and_dynamics() {
   bool changed = false;
-  if (ImGui::CollapsingHeader("Grab tool and solver (SPEC 4)", ImGuiTreeNodeFlags_DefaultOpen)) {
+  if (ImGui::CollapsingHeader("Grab tool and solver", ImGuiTreeNodeFlags_DefaultOpen)) {
     SolverParams& s = edit_.solver;
     changed |= ImGui::SliderFloat("grab radius (0,64]", &s.grab_radius, 0.5f, 16.0f, "%.2f", ImGuiSliderFlags_AlwaysClamp);
     int bs = s.brick_size == 4 ? 0 : s.brick_size == 16 ? 2 : 1;
@@ -267,7 +267,7 @@ bool Viewer::panel_solver_and_dynamics() {
     }
     changed |= ImGui::InputInt("max propagation sweeps [1,1e7]", &s.max_propagation_sweeps, 100, 10000);
   }
-  if (ImGui::CollapsingHeader("Dynamics (SPEC 5)", ImGuiTreeNodeFlags_DefaultOpen)) {
+  if (ImGui::CollapsingHeader("Dynamics (velocity layer)", ImGuiTreeNodeFlags_DefaultOpen)) {
     DynamicsParams& d = edit_.dynamics;
     int mode = static_cast<int>(d.mode);
     if (ImGui::Combo("damping (1/2/3)", &mode, "A: none\0B: simple\0C: viscoelastic\0")) {
@@ -303,7 +303,7 @@ bool Viewer::panel_solver_and_dynamics() {
 }
 
 bool Viewer::panel_tissue_and_material() {
-  if (!ImGui::CollapsingHeader("Tissue classes and material (SPEC 3)")) return false;
+  if (!ImGui::CollapsingHeader("Tissue classes and material")) return false;
   bool changed = false;
   TissueThresholds& t = edit_.tissue;
   ImGui::TextDisabled("t1 < t2 < t3 (HU); rebuilds the materials");

@@ -56,8 +56,10 @@ class Backend {
   /// Fills `speeds` when non-null (only then are speeds reduced).
   virtual void velocity_layer(SpeedStats* speeds) = 0;
 
-  /// Bricks that had work this frame (sparse bookkeeping; 0 when idle).
+  /// Bricks that had work this frame (any stage; 0 when the lattice is idle) and the elements
+  /// in them: what the frame cost follows.
   virtual Index active_bricks() const = 0;
+  virtual Index active_elements() const = 0;
   /// Stage timer: mark(k) at stage boundaries, elapsed_ms(a, b) between two marks of the
   /// current frame (CPU: steady clock; CUDA: events).
   virtual void mark(int slot) = 0;

@@ -8,6 +8,7 @@
 // user gives or gets back (ROI boxes, exported volumes and fields) is in the file's order;
 // `Input` carries the mapping between the two from the reader to the writers.
 #include <array>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -17,14 +18,30 @@
 
 namespace hpcm::io {
 
+/// What to do with DICOM slices that lie at the same position.
+enum class DicomDuplicates {
+  Error,  ///< refuse the series, naming the files (default)
+  First,  ///< keep the slice with the lowest InstanceNumber (then file name), drop the others
+};
+
 struct ReadOptions {
   std::string series_uid;  ///< DICOM directories with several series: which one
+  DicomDuplicates dicom_duplicates = DicomDuplicates::Error;
+  /// Skip files of a DICOM directory that are not readable DICOM instead of refusing the
+  /// directory (they are reported as a warning; a slice missing from the stack is still an error).
+  bool dicom_skip_unreadable = false;
+  /// Receives warnings (a volume read but worth a second look: HU outside the CT range, skipped
+  /// files). Empty: printed to stderr as "hpcm: warning: ...".
+  std::function<void(const std::string&)> warn;
 };
 
 /// Reads a volume file or a DICOM series directory as stored: values in HU, in the file's own
 /// index order (first index fastest; for DICOM: column, row, slice sorted along the slice
 /// normal) with the file's geometry (ITK conventions: LPS physical space). Throws
-/// hpcm::Error with a one-line message naming the path on any failure.
+/// hpcm::Error with a message naming the path on any failure: one line, then (only when a
+/// library printed something while reading) that library output as indented detail lines.
+/// Rejected: non-finite voxels, spacing that is zero, negative or not finite, HU outside
+/// [-32768, 65535], and DICOM series whose slices are not one evenly spaced stack (docs/io.md).
 Volume read_volume_as_stored(const std::string& path, const ReadOptions& opt = {});
 /// The same volume reoriented to LPS index order (to_lps_order of the above).
 Volume read_volume(const std::string& path, const ReadOptions& opt = {});
@@ -63,6 +80,8 @@ struct Box {
 
 struct InputOptions {
   std::string series_uid;     ///< DICOM directories with several series
+  DicomDuplicates dicom_duplicates = DicomDuplicates::Error;  ///< see ReadOptions
+  bool dicom_skip_unreadable = false;                          ///< see ReadOptions
   std::optional<Box> roi;     ///< crop, in the input file's own voxel indices
   int downsample = 1;         ///< block mean of f x f x f voxels, in the file's index order
 };
@@ -85,6 +104,11 @@ struct Input {
 Input prepare_input(Volume stored, const InputOptions& opt, const std::string& source);
 /// Reads `path` (read_volume_as_stored) and prepares it.
 Input load_input(const std::string& path, const InputOptions& opt = {});
+
+/// Checks that `path` can be written as a volume (supported extension, an existing writable
+/// folder, no other file's data in the way) without writing anything: for commands that must
+/// fail before a long computation.
+void check_output_path(const std::string& path);
 
 /// One series of a DICOM directory (for listing and --series).
 struct DicomSeriesInfo {

@@ -51,6 +51,10 @@ struct DynamicsParams {
   void validate() const;
   /// s_class = clamp(inverse_mass / max(inverse_mass), s_min, s_max) (SPEC §5.3).
   PerTissue response_scale() const;
+  /// Largest inertia gain beta * rho_class * s_class with which the motion still settles under
+  /// this mode, for the relaxation over-relaxation `relax_omega` (measured; docs/parameters.md,
+  /// "Stability"). Infinite for mode none.
+  float stable_gain_limit(float relax_omega) const;
   friend bool operator==(const DynamicsParams&, const DynamicsParams&) = default;
 };
 
@@ -60,6 +64,7 @@ struct Params {
   SolverParams solver;
   DynamicsParams dynamics;
   /// Validates every part; the message names the key (e.g. "dynamics.alpha") and range.
+  /// Also rejects velocity-layer settings that never settle (the stability rule).
   void validate() const;
   friend bool operator==(const Params&, const Params&) = default;
 };

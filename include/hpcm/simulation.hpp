@@ -18,7 +18,8 @@ struct FrameReport {
   Index restored_links = 0;     ///< links the restoration found outside their box (then restored)
   float restore_violation = 0;  ///< the largest of those violations before restoring
   Index moved_elements = 0;     ///< elements whose position changed this frame
-  Index active_bricks = 0;
+  Index active_bricks = 0;       ///< bricks that had work this frame (any stage)
+  Index active_elements = 0;    ///< elements in those bricks
   float max_link_violation = -1;  ///< after the ChainMail stage; -1 when not measured
   float min_cell_jacobian = -1;   ///< smallest cell corner Jacobian determinant at frame end; -1 when not measured
   Index folded_cells = -1;        ///< cells with a corner determinant <= 0 at frame end; -1 when not measured
@@ -76,7 +77,11 @@ class Simulation {
   /// Full state (downloaded from the backend when it changed).
   const State& state();
   Vec3 position(Index i) { return backend_->position(i); }
-  Backend& backend() { return *backend_; }
+  /// Direct access to the backend (it may change positions: the cached metrics are dropped).
+  Backend& backend() {
+    ++positions_version_;
+    return *backend_;
+  }
 
  private:
   void push_fixed();
@@ -95,6 +100,14 @@ class Simulation {
   Vec3 limit_lo_{}, limit_hi_{};
   std::vector<std::uint8_t> anchored_;  ///< per element: anchored at rest (grabbed elements excluded)
   int frame_ = 0;
+  // Integrity metrics of the current positions, kept while no brick had work.
+  struct Metric {
+    std::uint64_t version = ~std::uint64_t{0};
+    float value = 0;
+    Index count = 0;
+  };
+  std::uint64_t positions_version_ = 0;
+  Metric link_metric_, jacobian_metric_;
 };
 
 }  // namespace hpcm

@@ -23,6 +23,7 @@ void for_each_frame_report_field(Visit&& v) {
   v("restore_violation", &FrameReport::restore_violation, "the largest of those violations before restoring");
   v("moved_elements", &FrameReport::moved_elements, "elements whose position changed this frame");
   v("active_bricks", &FrameReport::active_bricks, "bricks that had work this frame");
+  v("active_elements", &FrameReport::active_elements, "elements in the bricks that had work this frame");
   v("max_link_violation", &FrameReport::max_link_violation, "largest link-box violation after the ChainMail stage; -1: not measured");
   v("min_cell_jacobian", &FrameReport::min_cell_jacobian, "smallest cell corner Jacobian determinant at frame end; -1: not measured");
   v("folded_cells", &FrameReport::folded_cells, "cells with a corner determinant <= 0 at frame end; -1: not measured");

@@ -1,4 +1,5 @@
 // Scenario files (TOML): scripted grabs with keyframed drag paths, or the paper protocol.
+#include <cmath>
 #include <fstream>
 #include <sstream>
 
@@ -16,6 +17,9 @@ namespace {
 
 constexpr int kMaxFrames = 10'000'000;
 constexpr float kMaxRadius = 64.0f;
+// Tool offsets beyond any lattice are meaningless; the bound also keeps the interpolation
+// between keyframes and |offset| finite (two offsets near FLT_MAX would overflow).
+constexpr float kMaxOffset = 10000.0f;
 
 std::string range_msg(const std::string& path, long long v, long long lo, long long hi) {
   return path + " = " + std::to_string(v) + " is out of range [" + std::to_string(lo) + ", " + std::to_string(hi) + "]";
@@ -102,6 +106,12 @@ GrabAction read_grab(const Ctx& ctx, const toml::node& n, std::size_t k, int fra
       kf.offset.y = detail::to_float(ctx, *a->get(2), kp + "[2] (dy)");
       kf.offset.z = detail::to_float(ctx, *a->get(3), kp + "[3] (dz)");
       if (kf.frame < 0 || kf.frame > kMaxFrames) fail(ctx, &e, range_msg(kp + " frame", kf.frame, 0, kMaxFrames));
+      const char* axis[3] = {"dx", "dy", "dz"};
+      const float d[3] = {kf.offset.x, kf.offset.y, kf.offset.z};
+      for (int a = 0; a < 3; ++a)
+        if (!(std::fabs(d[a]) <= kMaxOffset))
+          fail(ctx, &e, kp + "[" + std::to_string(a + 1) + "] (" + axis[a] + ") = " + fmt_float(d[a]) +
+                            " is out of range [-10000, 10000] lattice units");
       if (!g.path.empty() && kf.frame <= g.path.back().frame)
         fail(ctx, &e,
              kp + " frame " + std::to_string(kf.frame) + " must be greater than the previous keyframe's frame " +

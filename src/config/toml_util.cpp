@@ -11,6 +11,9 @@
 #include <fstream>
 #include <sstream>
 
+#include <sys/stat.h>
+#include <cerrno>
+
 namespace hpcm::config::detail {
 
 std::string line_suffix(const toml::node* at) {
@@ -260,12 +263,22 @@ std::string locate_message(const toml::table& root, const std::string& msg) {
 }
 
 std::string read_text(const std::string& path, const std::string& what) {
+  // Parameter and scenario files are a few kB: refuse directories and read at most
+  // kMaxConfigBytes, so /dev/zero or a multi-GB file is an error, not a hang.
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) throw Error(path + ": cannot open the " + what + " (" + std::strerror(errno) + ")");
+  if (S_ISDIR(st.st_mode)) throw Error(path + ": is a directory, not a " + what);
   std::ifstream in(path, std::ios::binary);
   if (!in) throw Error(path + ": cannot open the " + what);
-  std::ostringstream ss;
-  ss << in.rdbuf();
+  std::string text(kMaxConfigBytes + 1, '\0');
+  in.read(text.data(), static_cast<std::streamsize>(text.size()));
   if (in.bad()) throw Error(path + ": cannot read the " + what);
-  return ss.str();
+  text.resize(static_cast<std::size_t>(in.gcount()));
+  if (text.size() > kMaxConfigBytes)
+    throw Error(path + ": larger than " + std::to_string(kMaxConfigBytes / (1024 * 1024)) + " MiB; not a " + what);
+  if (text.find('\0') != std::string::npos)
+    throw Error(path + ": holds NUL bytes (binary data), not a " + what + " (TOML text)");
+  return text;
 }
 
 }  // namespace hpcm::config::detail

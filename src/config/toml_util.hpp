@@ -73,7 +73,11 @@ class Section {
 /// is present in the parsed table (e.g. "dynamics.alpha = 1.5 is out of range ...").
 std::string locate_message(const toml::table& root, const std::string& msg);
 
+/// Largest parameter or scenario file read (bytes).
+inline constexpr std::size_t kMaxConfigBytes = 4u << 20;
+
 /// Whole file as text; `what` names it in errors ("parameter file", "scenario file").
+/// Directories, files over kMaxConfigBytes and binary data (NUL bytes) are errors.
 std::string read_text(const std::string& path, const std::string& what);
 
 }  // namespace hpcm::config::detail

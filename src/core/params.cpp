@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 
 namespace hpcm {
@@ -92,11 +93,60 @@ PerTissue DynamicsParams::response_scale() const {
   return s;
 }
 
+namespace {
+// Share of an element's displacement that one frame of ChainMail relaxation takes back, as it
+// acts on the velocity layer (k in docs/parameters.md, "Stability"): fitted to where the
+// measured motion stops settling (scripts/stability_sweep.sh, 32x32x24 phantom), rounded up.
+// It grows with the over-relaxation factor, steeply near 2.
+float relaxation_take_back(float omega) {
+  static const float w[] = {1.0f, 1.5f, 1.85f, 1.9f, 1.95f};
+  static const float k[] = {1.0f, 1.06f, 1.27f, 1.35f, 1.65f};
+  if (omega <= w[0]) return k[0];
+  for (int i = 1; i < 5; ++i)
+    if (omega <= w[i]) return k[i - 1] + (k[i] - k[i - 1]) * (omega - w[i - 1]) / (w[i] - w[i - 1]);
+  return k[4];
+}
+}  // namespace
+
+float DynamicsParams::stable_gain_limit(float relax_omega) const {
+  // Linearised frame map of one element: x' = (1 - k) x + g V', V' = d (V - s k x), with the
+  // velocity decay d = alpha (simple) or 1 / (1 + b0) (viscoelastic, at rest). It is stable
+  // while g s < (1 + alpha) (2 - k) / k (simple) or (1 + d) (2 - k) / (d k) (viscoelastic).
+  const float k = relaxation_take_back(relax_omega);
+  switch (mode) {
+    case DampingMode::None: return std::numeric_limits<float>::infinity();
+    case DampingMode::Simple: return (1.0f + alpha) * (2.0f - k) / k;
+    case DampingMode::Viscoelastic: {
+      const float d = 1.0f / (1.0f + b0);
+      return (1.0f + d) * (2.0f - k) / (d * k);
+    }
+  }
+  return 0.0f;
+}
+
 void Params::validate() const {
   tissue.validate();
   material.validate();
   solver.validate();
   dynamics.validate();
+  const float limit = dynamics.stable_gain_limit(solver.relax_omega);
+  const PerTissue s = dynamics.response_scale();
+  for (int t = 0; t < kTissueCount; ++t) {
+    const float gain = dynamics.beta * dynamics.rho[t] * s[t];
+    if (!(gain <= limit * 1.0001f)) {  // a setting exactly at the limit is accepted
+      std::ostringstream m;
+      m << "dynamics.beta * dynamics.rho." << tissue_name(t) << " * s(" << tissue_name(t) << ") = " << dynamics.beta
+        << " * " << dynamics.rho[t] << " * " << s[t] << " = " << gain << " exceeds the stability limit " << limit
+        << " of dynamics.mode = " << damping_mode_name(dynamics.mode)
+        << (dynamics.mode == DampingMode::Simple ? " with dynamics.alpha = " : " with dynamics.b0 = ")
+        << (dynamics.mode == DampingMode::Simple ? dynamics.alpha : dynamics.b0)
+        << " and solver.relax_omega = " << solver.relax_omega
+        << ": the motion would never settle; lower dynamics.beta or dynamics.rho." << tissue_name(t)
+        << (dynamics.mode == DampingMode::Simple ? ", raise dynamics.alpha" : ", raise dynamics.b0")
+        << " or lower solver.relax_omega (stability rule, docs/parameters.md)";
+      throw Error(m.str());
+    }
+  }
 }
 
 }  // namespace hpcm

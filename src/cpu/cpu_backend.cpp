@@ -27,7 +27,6 @@ void CpuBackend::load(const Model& m, const Params& p, const State& s) {
   m_ = &m;
   p_ = p;
   k_ = dynamics::make_constants(p.dynamics, m.dims);
-  if (!p.solver.sleep) k_.sleep_speed = 0.0f;
   wall_ = solver::make_wall(m.dims, p.dynamics.margin);
   st_.load(m, s);
   grid_.init(m.dims, p.solver.brick_size);
@@ -39,6 +38,7 @@ void CpuBackend::load(const Model& m, const Params& p, const State& s) {
     if (!(s.vel[static_cast<std::size_t>(i)] == Vec3{}) || !(s.pos[static_cast<std::size_t>(i)] == m.rest(i)))
       touched_[static_cast<std::size_t>(grid_.brick_of_index(i))] = 1;
   hot_ = touched_;
+  worked_.assign(nb, 0);
   fixed_.clear();
   targets_.clear();
   const int threads = default_thread_count();
@@ -56,7 +56,6 @@ void CpuBackend::set_params(const Params& p) {
   const bool bricks_changed = p.solver.brick_size != p_.solver.brick_size;
   p_ = p;
   k_ = dynamics::make_constants(p.dynamics, m_->dims);
-  if (!p.solver.sleep) k_.sleep_speed = 0.0f;
   wall_ = solver::make_wall(m_->dims, p.dynamics.margin);
   mark_all(unchecked_);  // a new margin may put elements outside the wall
   if (bricks_changed) {
@@ -101,7 +100,7 @@ PropagateStats CpuBackend::propagate() {
   }
   const PropagateStats ps =
       propagation_.run(st_, fixed_, wall_, p_.solver.max_propagation_sweeps, touched_, hot_, *pool_);
-  active_ = static_cast<Index>(std::count(touched_.begin(), touched_.end(), 1));
+  for (std::size_t b = 0; b < touched_.size(); ++b) worked_[b] |= touched_[b];
   return ps;
 }
 
@@ -124,9 +123,7 @@ RelaxContext CpuBackend::relax_context() {
 
 RelaxStats CpuBackend::relax(int sweeps) {
   if (!p_.solver.sleep) mark_all(hot_);  // every brick awake: the exact reference
-  Index active = 0;
-  const RelaxStats rs = relaxation_.run(relax_context(), sweeps, hot_, touched_, *pool_, active);
-  active_ = std::max(active_, active);
+  const RelaxStats rs = relaxation_.run(relax_context(), sweeps, hot_, touched_, worked_, *pool_);
   return rs;
 }
 
@@ -137,6 +134,7 @@ RestoreStats CpuBackend::restore_links() {
   grid_.dilate_to_list(unchecked_, check_list_);
   std::fill(unchecked_.begin(), unchecked_.end(), 0);
   if (check_list_.empty()) return rs;
+  for (Index b : check_list_) worked_[static_cast<std::size_t>(b)] = 1;
   StorageAccess access(st_);
   seeds_.clear();
   check_.run(st_, grid_, check_list_, wall_, seeds_, rs, *pool_);
@@ -151,12 +149,25 @@ RestoreStats CpuBackend::restore_links() {
 }
 
 void CpuBackend::velocity_layer(SpeedStats* speeds) {
-  layer_.apply(st_, k_, !p_.solver.sleep, touched_, hot_, unchecked_, speeds, *pool_);
-  active_ = std::max(active_, layer_.last_bricks());
+  layer_.apply(st_, k_, p_.solver.sleep ? p_.dynamics.sleep_speed : 0.0f, !p_.solver.sleep, touched_, hot_, unchecked_,
+               worked_, speeds, *pool_);
+}
+
+Index CpuBackend::active_bricks() const { return static_cast<Index>(std::count(worked_.begin(), worked_.end(), 1)); }
+
+Index CpuBackend::active_elements() const {
+  Index n = 0;
+  for (Index b = 0; b < grid_.count; ++b)
+    if (worked_[static_cast<std::size_t>(b)]) {
+      Int3 lo, hi;
+      grid_.range(b, lo, hi);
+      n += static_cast<Index>(hi.x - lo.x) * (hi.y - lo.y) * (hi.z - lo.z);
+    }
+  return n;
 }
 
 void CpuBackend::mark(int slot) {
-  if (slot == 0) active_ = 0;
+  if (slot == 0) std::fill(worked_.begin(), worked_.end(), 0);
   marks_[slot] = std::chrono::steady_clock::now();
 }
 

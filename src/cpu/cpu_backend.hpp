@@ -35,7 +35,8 @@ class CpuBackend final : public Backend {
   RelaxStats relax(int sweeps) override;
   RestoreStats restore_links() override;
   void velocity_layer(SpeedStats* speeds) override;
-  Index active_bricks() const override { return active_; }
+  Index active_bricks() const override;
+  Index active_elements() const override;
   void mark(int slot) override;
   double elapsed_ms(int from_slot, int to_slot) override;
   void download(State& s) override { st_.store_state(s); }
@@ -64,6 +65,7 @@ class CpuBackend final : public Backend {
   std::vector<Index> fixed_;
   std::vector<Vec3> targets_;
   std::vector<std::uint8_t> touched_, hot_, unchecked_;
+  std::vector<std::uint8_t> worked_;  ///< bricks any stage processed this frame
   std::unique_ptr<WorkerPool> pool_;
   Propagation propagation_;
   Relaxation relaxation_;
@@ -73,7 +75,6 @@ class CpuBackend final : public Backend {
   std::vector<Index> check_list_, seeds_;
   std::string forced_kernel_;
   const char* kernel_name_ = "";
-  Index active_ = 0;
   std::chrono::steady_clock::time_point marks_[8];
 };
 

@@ -11,12 +11,16 @@
 namespace hpcm::cpu {
 
 /// Elements [j0, j1) of half h of row (y, z), for the velocity layer. Element j's brick column
-/// is (j - col_base) / col_width: the layer sets col_velocity there when the element carries
-/// velocity afterwards and col_moved when it moved it (X_{t+1} != X+).
+/// is (j - col_base) / col_width: elements of a column with col_asleep set get no dynamics
+/// this frame (as FIXED elements); the layer sets col_velocity when the element carries
+/// velocity afterwards, col_moved when it moved it (X_{t+1} != X+), and raises col_speed to
+/// the element's |V| before the clamp.
 struct LayerRow {
   int h, y, z, j0, j1;
+  const std::uint8_t* col_asleep;
   std::uint8_t* col_velocity;
   std::uint8_t* col_moved;
+  float* col_speed;
   int col_base, col_width;
 };
 /// The velocity layer (dynamics::velocity_update) over one row; adds each element's speed

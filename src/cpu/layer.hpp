@@ -21,12 +21,17 @@ class VelocityLayer {
     grid_ = grid;
     kernel_ = kernel;
     has_velocity_.assign(static_cast<std::size_t>(grid.count), 0);
+    speed_.assign(static_cast<std::size_t>(grid.count), 0.0f);
+    asleep_.assign(static_cast<std::size_t>(grid.count), 0);
   }
   /// Runs the layer over touched bricks and bricks with velocity (every brick when `all`),
   /// writes X_{t+1} into p and q (the frame-end snapshot), marks bricks it moved in `hot` and
-  /// `moved`, and clears `touched`. Fills `speeds` when non-null.
-  void apply(Storage& st, const dynamics::LayerConstants& k, bool all, std::vector<std::uint8_t>& touched,
-             std::vector<std::uint8_t>& hot, std::vector<std::uint8_t>& moved, SpeedStats* speeds, WorkerPool& pool);
+  /// `moved` and bricks it visited in `worked`, and clears `touched`. Fills `speeds` when
+  /// non-null. A brick that ChainMail left untouched this frame and whose velocities all stayed
+  /// below `sleep_speed` last frame comes to rest (its velocities become 0; 0 = never).
+  void apply(Storage& st, const dynamics::LayerConstants& k, float sleep_speed, bool all, std::vector<std::uint8_t>& touched,
+             std::vector<std::uint8_t>& hot, std::vector<std::uint8_t>& moved, std::vector<std::uint8_t>& worked,
+             SpeedStats* speeds, WorkerPool& pool);
   Index last_bricks() const { return last_bricks_; }
   /// Bricks whose elements carry velocity (for reporting).
   Index bricks_with_velocity() const;
@@ -35,6 +40,8 @@ class VelocityLayer {
   solver::BrickGrid grid_;
   LayerRowKernel kernel_ = nullptr;
   std::vector<std::uint8_t> has_velocity_;
+  std::vector<float> speed_;            ///< per brick: largest |V| (before the clamp) of the last visit
+  std::vector<std::uint8_t> asleep_;    ///< per brick: no dynamics this frame
   struct BrickRun {
     int by, bz, bx0, bx1;  ///< bricks [bx0, bx1) of brick row (by, bz)
   };

@@ -33,7 +33,7 @@ void layer_row(Storage& st, const dynamics::LayerConstants& k, const LayerRow& r
   const V zero = splat<V>(0.0f);
   const V fy = splat<V>(static_cast<float>(r.y)), fz = splat<V>(static_cast<float>(r.z));
   const V alpha = splat<V>(k.alpha), one_b0 = splat<V>(1.0f + k.b0), dead_zone = splat<V>(k.dead_zone);
-  const V v_max = splat<V>(k.v_max), sleep = splat<V>(k.sleep_speed), beta = splat<V>(k.beta);
+  const V v_max = splat<V>(k.v_max), beta = splat<V>(k.beta);
   V lane;
   for (int l = 0; l < N; ++l) lane[l] = static_cast<float>(l);
   for (int j = r.j0; j < r.j1; j += N) {
@@ -41,7 +41,9 @@ void layer_row(Storage& st, const dynamics::LayerConstants& k, const LayerRow& r
     const int count = std::min(N, r.j1 - j);
     const M in_row = lane < splat<V>(static_cast<float>(count));
     const M t = load_bytes<V>(st.tissue.data() + e);
-    const M fixed = (load_bytes<V>(st.flags.data() + e) & static_cast<int>(kFixed)) != 0;
+    M fixed = (load_bytes<V>(st.flags.data() + e) & static_cast<int>(kFixed)) != 0;
+    for (int l = 0; l < count; ++l)  // a sleeping brick's elements get no dynamics this frame
+      if (r.col_asleep[(j + l - r.col_base) / r.col_width]) fixed[l] = -1;
     V post[3], pre[3], v[3];
     for (int a = 0; a < 3; ++a) {
       post[a] = load<V>(st.p[a].data() + e);
@@ -66,12 +68,16 @@ void layer_row(Storage& st, const dynamics::LayerConstants& k, const LayerRow& r
       const V denom = one_b0 + by_tissue<V>(t, k.b1) * norm3<V>(pre[0] - fx, pre[1] - fy, pre[2] - fz);
       for (int a = 0; a < 3; ++a) nv[a] = vt[a] / denom;
     }
-    // 5. magnitude clamp keeping the direction, or rest below the sleep speed.
+    // 5. magnitude clamp keeping the direction.
     const V speed = norm3<V>(nv[0], nv[1], nv[2]);
     const M fast = speed > v_max;
     const V f = v_max / speed;
-    const M rest = ~fast & (speed < sleep);
-    for (int a = 0; a < 3; ++a) nv[a] = fast ? nv[a] * f : (rest ? zero : nv[a]);
+    for (int a = 0; a < 3; ++a) nv[a] = fast ? nv[a] * f : nv[a];
+    for (int l = 0; l < count; ++l)
+      if (dynamic[l]) {
+        float& cs = r.col_speed[(j + l - r.col_base) / r.col_width];
+        cs = cs > speed[l] ? cs : speed[l];
+      }
     // 6. position update.
     const V g = beta * by_tissue<V>(t, k.rho);
     V out[3];

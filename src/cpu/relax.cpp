@@ -147,6 +147,8 @@ float Relaxation::phase(const RelaxContext& ctx, int p, int z, Index& active_cel
       int end = bx + 1;
       while (end < nb.x && cell_active(p, z, row + end)) ++end;
       active_cells += end - bx;
+      for (int c = bx; c < end; ++c)  // several threads may mark one brick: atomic, relaxed
+        std::atomic_ref<std::uint8_t>(worked_[row + c + cells_ * (z / B)]).store(1, std::memory_order_relaxed);
       // Cells [bx, end) of this brick row: their rows, this colour's half of each.
       const int x0 = bx * B, x1 = std::min(end * B, L.dims.x);
       for (int y = by * B; y < y1; ++y) {
@@ -161,9 +163,9 @@ float Relaxation::phase(const RelaxContext& ctx, int p, int z, Index& active_cel
 }
 
 RelaxStats Relaxation::run(const RelaxContext& ctx, int sweeps, std::vector<std::uint8_t>& hot,
-                           std::vector<std::uint8_t>& touched, WorkerPool& pool, Index& active_max) {
+                           std::vector<std::uint8_t>& touched, std::vector<std::uint8_t>& worked, WorkerPool& pool) {
   RelaxStats st;
-  active_max = 0;
+  worked_ = worked.data();
   if (sweeps <= 0) return st;
   const int nz = grid_.dims.z, P = 2 * sweeps;
   // First-sweep work: bricks changed by the last frame, and their face neighbours.
@@ -217,20 +219,13 @@ RelaxStats Relaxation::run(const RelaxContext& ctx, int sweeps, std::vector<std:
     for (int z = 0; z < nz; ++z) {
       const std::uint8_t* ch = changed_.data() + (static_cast<Index>(p) * nz + z) * cells_;
       const Index brick_layer = cells_ * (z / B);
-      Index active = 0;
       for (Index c = 0; c < cells_; ++c) {
         if (!ch[c]) continue;
         touched[static_cast<std::size_t>(brick_layer + c)] = 1;
         // What the last sweep changed is work for the next frame.
         if (p >= P - 2) hot[static_cast<std::size_t>(brick_layer + c)] = 1;
-        ++active;
       }
-      (void)active;
     }
-  for (int s = 0; s < sweeps; ++s)
-    active_max = std::max<Index>(active_max, (phase_cells_[static_cast<std::size_t>(2 * s)] +
-                                              phase_cells_[static_cast<std::size_t>(2 * s + 1)] + 2 * B - 1) /
-                                                 (2 * B));
   return st;
 }
 

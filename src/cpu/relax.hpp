@@ -54,10 +54,10 @@ class Relaxation {
   void init(const solver::BrickGrid& grid, RelaxRunKernel kernel);
   /// Up to `sweeps` sweeps (cpu/relax.cpp has the schedule), starting from the bricks marked
   /// in `hot` and their face neighbours; stops early where nothing moves. Bricks whose
-  /// elements moved are marked in `touched`; `hot` gets the bricks the last sweep changed.
-  /// `active_max` gets the largest brick count of a sweep.
+  /// elements moved are marked in `touched`; `hot` gets the bricks the last sweep changed;
+  /// bricks it worked on are marked in `worked`.
   RelaxStats run(const RelaxContext& ctx, int sweeps, std::vector<std::uint8_t>& hot,
-                 std::vector<std::uint8_t>& touched, WorkerPool& pool, Index& active_max);
+                 std::vector<std::uint8_t>& touched, std::vector<std::uint8_t>& worked, WorkerPool& pool);
 
  private:
   bool changed(int p, int z, Index cell) const {
@@ -65,6 +65,7 @@ class Relaxation {
   }
   bool cell_active(int p, int z, Index cell) const;
   float phase(const RelaxContext& ctx, int p, int z, Index& active_cells);
+  std::uint8_t* worked_ = nullptr;  ///< per brick, during run()
   solver::BrickGrid grid_;
   RelaxRunKernel kernel_ = nullptr;
   Index cells_ = 0;                     ///< brick columns per plane

@@ -79,7 +79,6 @@ class DeviceBackend final : public Backend {
     m_ = &m;
     p_ = p;
     k_ = dynamics::make_constants(p.dynamics, m.dims);
-    if (!p.solver.sleep) k_.sleep_speed = 0.0f;
     wall_ = solver::make_wall(m.dims, p.dynamics.margin);
     L_ = Lattice{};
     L_.nx = m.dims.x;
@@ -107,6 +106,7 @@ class DeviceBackend final : public Backend {
     L_.has_vel = alloc<std::uint8_t>(NB, "brick flags");
     L_.wave = alloc<std::uint8_t>(NB, "brick flags");
     L_.unchecked = alloc<std::uint8_t>(NB, "brick flags");
+    L_.speed = alloc<float>(NB, "brick speeds");
     save_touched_ = alloc<std::uint8_t>(NB, "brick flags");
     save_hot_ = alloc<std::uint8_t>(NB, "brick flags");
     relax_list_ = alloc<int>(NB, "relaxation brick list");
@@ -146,6 +146,7 @@ class DeviceBackend final : public Backend {
     x_.upload(L_.touched, touched.data(), NB);
     x_.upload(L_.hot, touched.data(), NB);
     x_.zero(L_.has_vel, NB);
+    x_.zero(L_.speed, NB * sizeof(float));
     x_.zero(L_.wave, NB);
     std::vector<std::uint8_t> all(NB, 1);
     x_.upload(L_.unchecked, all.data(), NB);  // a loaded state is checked once
@@ -165,7 +166,6 @@ class DeviceBackend final : public Backend {
     const bool bricks_changed = p.solver.brick_size != p_.solver.brick_size;
     p_ = p;
     k_ = dynamics::make_constants(p.dynamics, m_->dims);
-    if (!p.solver.sleep) k_.sleep_speed = 0.0f;
     wall_ = solver::make_wall(m_->dims, p.dynamics.margin);
     x_.invalidate();  // the relaxation graph holds the threshold and the wall
     {
@@ -381,6 +381,11 @@ class DeviceBackend final : public Backend {
     }
     return active_;
   }
+  /// Elements of the active bricks, counted as full bricks (the largest count of any stage).
+  Index active_elements() const override {
+    const Index b = active_bricks();
+    return std::min<Index>(L_.n, b * L_.grid.size * L_.grid.size * L_.grid.size);
+  }
 
   void mark(int slot) override {
     if (slot < 0 || slot >= 8) throw Error("mark: slot " + std::to_string(slot) + " is out of range [0, 7]");
@@ -518,6 +523,7 @@ class DeviceBackend final : public Backend {
     a.k = k_;
     a.speeds = speeds;
     a.all = all;
+    a.sleep_speed = p_.solver.sleep ? p_.dynamics.sleep_speed : 0.0f;
     a.part_sum = part_sum_;
     a.part_max = part_max_;
     a.part_moved = part_moved_;

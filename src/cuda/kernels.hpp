@@ -119,6 +119,7 @@ struct Lattice {
   std::uint8_t* has_vel = nullptr;  ///< carries velocity (velocity layer must visit)
   std::uint8_t* wave = nullptr;     ///< holds elements with a finite time of the last wave
   std::uint8_t* unchecked = nullptr;  ///< positions changed since the last link check (restoration)
+  float* speed = nullptr;             ///< largest |V| (before the clamp) of the brick's last visit
 
   HPCM_HD long long index(int x, int y, int z) const { return x + static_cast<long long>(nx) * (y + static_cast<long long>(ny) * z); }
   HPCM_HD void coords(long long i, int& x, int& y, int& z) const {
@@ -629,6 +630,7 @@ struct LayerArgs {
   dynamics::LayerConstants k;
   bool speeds = false;  ///< write per-brick speed partials
   bool all = false;     ///< visit every brick (benchmark probe)
+  float sleep_speed = 0.0f;  ///< a brick untouched this frame, below it last frame, comes to rest (0: never)
   float* part_sum = nullptr;  ///< [nbricks][4]
   float* part_max = nullptr;  ///< [nbricks][4]
   int* part_moved = nullptr;  ///< [nbricks]
@@ -653,6 +655,7 @@ HPCM_HD void tree_reduce_speeds(B& blk, int T, S (&sum)[kTissueCount][N], M (&ma
 
 struct LayerShared {
   int anyv, moved;
+  unsigned vmax;  ///< float bits of the largest |V| before the clamp
   float sum[kTissueCount][kBrickThreads];
   float max[kTissueCount][kBrickThreads];
   int cnt[kBrickThreads];
@@ -680,10 +683,14 @@ HPCM_HD void layer_block(const LayerArgs& a, long long b, LayerShared& sh, B& bl
   int lo[3], hi[3];
   L.brick_range(b, lo, hi);
   const int bs = L.grid.size, per = bs * bs * bs;
+  // An untouched brick whose velocities all stayed below the sleep speed comes to rest (as the
+  // CPU's VelocityLayer::apply): its elements get no dynamics this frame. Uniform over the block.
+  const bool asleep = a.sleep_speed > 0.0f && !L.touched[b] && L.speed[b] < a.sleep_speed;
   blk.each([&](int tid) {
     if (tid == 0) {
       sh.anyv = 0;
       sh.moved = 0;
+      sh.vmax = 0;
     }
   });
   blk.each([&](int tid) {
@@ -697,8 +704,10 @@ HPCM_HD void layer_block(const LayerArgs& a, long long b, LayerShared& sh, B& bl
       const int t = L.tissue[i];
       const Vec3 post = L.pos[i], before = L.pre[i];
       Vec3 v = L.vel[i];
-      const Vec3 out = dynamics::velocity_update(a.k, t, (L.flags[i] & kFixed) != 0, before, post,
-                                                 Vec3{float(x), float(y), float(z)}, v);
+      float speed;
+      const Vec3 out = dynamics::velocity_update(a.k, t, asleep || (L.flags[i] & kFixed) != 0, before, post,
+                                                 Vec3{float(x), float(y), float(z)}, v, &speed);
+      at_max_u32(&sh.vmax, float_bits(speed));
       L.vel[i] = v;
       L.pos[i] = out;
       L.pre[i] = out;  // frame-end snapshot: next frame's X-
@@ -725,6 +734,7 @@ HPCM_HD void layer_block(const LayerArgs& a, long long b, LayerShared& sh, B& bl
   blk.each([&](int tid) {
     if (tid == 0) {
       L.has_vel[b] = sh.anyv ? 1 : 0;
+      L.speed[b] = bits_float(sh.vmax);
       if (sh.moved) L.hot[b] = L.unchecked[b] = 1;
       L.touched[b] = 0;
       at_add(&a.ctl->count, 1);

@@ -10,7 +10,6 @@ LayerConstants make_constants(const DynamicsParams& p, Int3 dims) {
   k.dead_zone = p.dead_zone;
   k.v_max = p.v_max;
   k.beta = p.beta;
-  k.sleep_speed = p.sleep_speed;
   const PerTissue s = p.response_scale();
   for (int t = 0; t < kTissueCount; ++t) {
     k.s[t] = s[t];

@@ -12,17 +12,19 @@ namespace hpcm::dynamics {
 struct LayerConstants {
   int mode;            ///< 0 none, 1 simple, 2 viscoelastic
   float alpha, b0, dead_zone, v_max, beta;
-  float sleep_speed;   ///< velocities below it become 0 (0: never)
   float s[4], b1[4], rho[4], inv_mass[4];
   float lo[3], hi[3];  ///< boundary clamp box [-m, N-1+m]
 };
 
 LayerConstants make_constants(const DynamicsParams& p, Int3 dims);
 
-/// One element: updates v and returns X_{t+1}. `fixed` = FIXED flag (grabbed / anchored).
+/// One element: updates v and returns X_{t+1}. `fixed`: no dynamics for this element this frame
+/// (FIXED: grabbed or anchored; or its brick sleeps). `speed`, when given, receives |V| before
+/// the magnitude clamp (0 without dynamics): the backends' brick sleep decision.
 HPCM_HD inline Vec3 velocity_update(const LayerConstants& k, int tissue, bool fixed, Vec3 pre, Vec3 post, Vec3 rest,
-                                    Vec3& v) {
+                                    Vec3& v, float* speed_out = nullptr) {
   Vec3 x = post;
+  if (speed_out) *speed_out = 0.0f;
   if (fixed || k.inv_mass[tissue] == 0.0f || k.mode == 0) {
     v = Vec3{0, 0, 0};  // 1. FIXED / massless (bone), and condition A: no dynamics
   } else {
@@ -37,11 +39,10 @@ HPCM_HD inline Vec3 velocity_update(const LayerConstants& k, int tissue, bool fi
       v = Vec3{vt.x / denom, vt.y / denom, vt.z / denom};
     }
     const float speed = norm(v);  // 5. magnitude clamp keeping the direction
+    if (speed_out) *speed_out = speed;
     if (speed > k.v_max) {
       const float f = k.v_max / speed;
       v = Vec3{v.x * f, v.y * f, v.z * f};
-    } else if (speed < k.sleep_speed) {
-      v = Vec3{0, 0, 0};  // 5b. come to rest: a velocity this small would only decay
     }
     const float g = k.beta * k.rho[tissue];  // 6. position update
     x = Vec3{post.x + g * v.x, post.y + g * v.y, post.z + g * v.z};

@@ -3,20 +3,25 @@
 // All ITK code of the project is in this one translation unit (compile time).
 #include <algorithm>
 #include <atomic>
+#include <cerrno>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
+#include <limits>
+#include <optional>
+#include <set>
 #include <sstream>
 #include <unistd.h>
 
+#include <gdcmReader.h>
+#include <gdcmStringFilter.h>
 #include <itkGDCMImageIO.h>
-#include <itkGDCMSeriesFileNames.h>
 #include <itkImage.h>
 #include <itkImageFileReader.h>
 #include <itkImageFileWriter.h>
-#include <itkImageSeriesReader.h>
 #include <itkMetaDataObject.h>
 #include <itkMetaImageIO.h>
 #include <itkNiftiImageIO.h>
@@ -27,6 +32,7 @@
 
 #include "hpcm/io.hpp"
 #include "hpcm/tissue.hpp"
+#include "input_checks.hpp"
 #include "io_detail.hpp"
 
 namespace fs = std::filesystem;
@@ -84,16 +90,88 @@ std::string dims_text(const std::vector<std::size_t>& d) {
   return s;
 }
 
+// Library output (GDCM, OpenJPEG, the NIfTI library, ITK's warnings) goes to stdout/stderr
+// directly. While hpcm reads or writes, both file descriptors point into a temporary file; on
+// failure that text becomes detail lines after hpcm's own one-line message, on success it is
+// dropped (hpcm checks what those libraries warn about itself).
+class LibraryOutputCapture {
+ public:
+  LibraryOutputCapture() {
+    std::fflush(stdout);
+    std::fflush(stderr);
+    tmp_ = std::tmpfile();
+    if (!tmp_) return;
+    saved_out_ = ::dup(1);
+    saved_err_ = ::dup(2);
+    if (saved_out_ < 0 || saved_err_ < 0) {
+      restore();
+      return;
+    }
+    ::dup2(fileno(tmp_), 1);
+    ::dup2(fileno(tmp_), 2);
+  }
+  ~LibraryOutputCapture() {
+    restore();
+    if (tmp_) std::fclose(tmp_);
+  }
+  LibraryOutputCapture(const LibraryOutputCapture&) = delete;
+  LibraryOutputCapture& operator=(const LibraryOutputCapture&) = delete;
+
+  void restore() {
+    std::fflush(stdout);
+    std::fflush(stderr);
+    std::cout.flush();
+    std::cerr.flush();
+    if (saved_out_ >= 0) ::dup2(saved_out_, 1), ::close(saved_out_), saved_out_ = -1;
+    if (saved_err_ >= 0) ::dup2(saved_err_, 2), ::close(saved_err_), saved_err_ = -1;
+  }
+  /// What the libraries printed, as indented lines (at most 8), "" when nothing.
+  std::string detail() {
+    restore();
+    if (!tmp_) return "";
+    std::rewind(tmp_);
+    std::string text(4096, '\0');
+    text.resize(std::fread(text.data(), 1, text.size(), tmp_));
+    std::string out, line;
+    int lines = 0;
+    std::istringstream in(text);
+    while (std::getline(in, line)) {
+      line = trim(line);
+      if (line.empty()) continue;
+      if (++lines > 8) {
+        out += "\n  | ...";
+        break;
+      }
+      if (line.size() > 200) line = line.substr(0, 197) + "...";
+      out += "\n  | " + line;
+    }
+    return out.empty() ? "" : "\n  library output while reading:" + out;
+  }
+
+ private:
+  std::FILE* tmp_ = nullptr;
+  int saved_out_ = -1, saved_err_ = -1;
+};
+
+// Refuses a volume of `voxels` that cannot be read into memory (file buffer + float copies).
+void check_read_memory(const std::string& path, const std::vector<std::size_t>& d, double file_bytes_per_voxel) {
+  const double n = double(d[0]) * double(d[1]) * double(d[2]);
+  const double per_voxel = 2.0 * sizeof(float) + file_bytes_per_voxel + sizeof(float);  // ITK buffers + Volume
+  const double need = n * per_voxel;
+  const double avail = double(detail::available_memory_bytes());
+  if (n > 2147483647.0 || need > avail)
+    throw Error(path + ": volume " + dims_text({d[0], d[1], d[2]}) + " is too large: reading needs " +
+                detail::format_bytes(need) + " (" + std::to_string(static_cast<unsigned long long>(need)) +
+                " bytes) but " + detail::format_bytes(avail) + " of memory are available" +
+                (n > 2147483647.0 ? " and at most 2^31-1 voxels are supported" : "") +
+                "; crop it or down-sample it first");
+}
+
 // Checks the header of a scalar 3-D volume: components, dimensionality, memory.
-// `extra_bytes_per_voxel`: what reading costs beyond the float result (file-type buffer).
-Int3 check_header(const std::string& path, itk::ImageIOBase& io, std::size_t nslices_override = 0) {
+Int3 check_header(const std::string& path, itk::ImageIOBase& io) {
   const unsigned nd = io.GetNumberOfDimensions();
   std::vector<std::size_t> d;
   for (unsigned a = 0; a < nd; ++a) d.push_back(io.GetDimensions(a));
-  if (nslices_override) {
-    d.resize(3, 1);
-    d[2] = nslices_override;
-  }
   const unsigned nc = io.GetNumberOfComponents();
   if (nc != 1 || (io.GetPixelType() != itk::IOPixelEnum::SCALAR))
     throw Error(path + ": " + itk::ImageIOBase::GetPixelTypeAsString(io.GetPixelType()) + " image with " +
@@ -104,34 +182,47 @@ Int3 check_header(const std::string& path, itk::ImageIOBase& io, std::size_t nsl
     if (d[a] != 1)
       throw Error(path + ": a " + std::to_string(d.size()) + "-D image (" + dims_text(d) +
                   "); a single 3-D volume is needed");
-  const double n = double(d[0]) * double(d[1]) * double(d[2]);
-  const double per_voxel = 2.0 * sizeof(float) + io.GetComponentSize() + sizeof(float);  // ITK buffers + Volume
-  const double need = n * per_voxel;
-  const double avail = double(detail::available_memory_bytes());
-  if (n > 2147483647.0 || need > avail)
-    throw Error(path + ": volume " + dims_text({d[0], d[1], d[2]}) + " is too large: reading needs " +
-                detail::format_bytes(need) + " (" + std::to_string(static_cast<unsigned long long>(need)) +
-                " bytes) but " + detail::format_bytes(avail) + " of memory are available" +
-                (n > 2147483647.0 ? " and at most 2^31-1 voxels are supported" : "") +
-                "; crop it or down-sample it first");
+  check_read_memory(path, d, double(io.GetComponentSize()));
   return {int(d[0]), int(d[1]), int(d[2])};
 }
 
-// ITK float image (file index order, LPS geometry) -> checked Volume in the same order.
-Volume finish(const std::string& path, FloatImage* img) {
-  detail::Geometry g;
-  const auto size = img->GetLargestPossibleRegion().GetSize();
-  g.dims = {int(size[0]), int(size[1]), int(size[2])};
-  for (int a = 0; a < 3; ++a) {
-    g.spacing[a] = img->GetSpacing()[a];
-    g.origin[a] = img->GetOrigin()[a];
-    for (int c = 0; c < 3; ++c) g.direction[a * 3 + c] = img->GetDirection()(a, c);
+// HU plausibility. CT stores HU in 16 bits (about -1024..3071, up to ~30000 with metal on an
+// extended scale; padding down to -32768): values beyond any 16-bit range are not HU at all.
+constexpr float kHuMin = -32768.0f, kHuMax = 65535.0f;
+constexpr float kHuWarnLow = -4096.0f, kHuWarnHigh = 32767.0f;
+
+void check_hu(const std::string& path, const std::vector<float>& hu, std::vector<std::string>& warnings) {
+  float lo = std::numeric_limits<float>::infinity(), hi = -lo;
+  std::size_t outside = 0, far = 0;
+  for (float h : hu) {
+    lo = std::min(lo, h);
+    hi = std::max(hi, h);
+    far += (h < kHuMin || h > kHuMax);
+    outside += (h < kHuWarnLow || h > kHuWarnHigh);
   }
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "values %.6g..%.6g", lo, hi);
+  if (far)
+    throw Error(path + ": " + std::to_string(far) + " voxels lie outside [-32768, 65535] (" + buf +
+                "); these are not Hounsfield units (a CT stores about -1024..3071, metal up to ~30000)");
+  if (outside)
+    warnings.push_back(path + ": " + std::to_string(outside) + " voxels lie outside [-4096, 32767] HU (" + buf +
+                       "); they count as air (low) or bone (high): padding or a missing rescale?");
+  else if (lo >= 0)
+    warnings.push_back(path + ": no voxel below 0 HU (" + std::string(buf) +
+                       "): air is about -1000 HU; if the rescale intercept is missing, every tissue class is wrong");
+}
+
+// Image (file index order, LPS geometry g) -> checked Volume in the same order (as stored).
+Volume finish(const std::string& path, const float* data, const detail::Geometry& g, std::vector<std::string>& warnings) {
   for (int a = 0; a < 3; ++a)
     if (!(g.spacing[a] > 0) || !std::isfinite(g.spacing[a]))
       throw Error(path + ": voxel spacing " + std::to_string(g.spacing[a]) + " along axis " + std::to_string(a) +
                   " is not a positive number");
-  const float* data = img->GetBufferPointer();
+  for (double x : g.origin)
+    if (!std::isfinite(x)) throw Error(path + ": the volume origin is not finite");
+  for (double x : g.direction)
+    if (!std::isfinite(x)) throw Error(path + ": the direction matrix is not finite");
   const std::size_t n = std::size_t(g.dims.x) * g.dims.y * g.dims.z;
   std::size_t bad = 0, first = 0;
   for (std::size_t i = 0; i < n; ++i)
@@ -148,12 +239,43 @@ Volume finish(const std::string& path, FloatImage* img) {
   v.direction = g.direction;
   v.hu.assign(data, data + n);
   validate_volume(v, path);
+  check_hu(path, v.hu, warnings);
   return v;
 }
 
-// ITK's NIfTI and MetaImage readers do not report a short data part (they print to stderr or
-// leave garbage): check that the file holds all the bytes its header announces.
-void check_complete(const std::string& path, Format f, itk::ImageIOBase& io) {
+Volume finish(const std::string& path, FloatImage* img, std::vector<std::string>& warnings) {
+  detail::Geometry g;
+  const auto size = img->GetLargestPossibleRegion().GetSize();
+  g.dims = {int(size[0]), int(size[1]), int(size[2])};
+  for (int a = 0; a < 3; ++a) {
+    g.spacing[a] = img->GetSpacing()[a];
+    g.origin[a] = img->GetOrigin()[a];
+    for (int c = 0; c < 3; ++c) g.direction[a * 3 + c] = img->GetDirection()(a, c);
+  }
+  return finish(path, img->GetBufferPointer(), g, warnings);
+}
+
+// The text header of a MetaImage or NRRD file (at most 1 MiB; binary data may follow).
+std::string read_text_header(const std::string& path, bool nrrd) {
+  std::ifstream in(path, std::ios::binary);
+  std::string text(1 << 20, '\0');
+  in.read(text.data(), std::streamsize(text.size()));
+  text.resize(std::size_t(in.gcount()));
+  // Cut at the end of the header so binary data never reaches the text parsers.
+  std::size_t end = std::string::npos;
+  if (nrrd) {
+    end = text.find("\n\n");
+    if (end == std::string::npos) end = text.find("\r\n\r\n");
+  } else {
+    const auto k = text.find("ElementDataFile");
+    if (k != std::string::npos) end = text.find('\n', k);
+  }
+  return end == std::string::npos ? text : text.substr(0, end + 1);
+}
+
+// A complete data part (NIfTI, MetaImage) and, for NIfTI, a checked header and finite float
+// voxels: what ITK and the NIfTI library would not report or would repair silently (NaN -> 0).
+void check_file_before_itk(const std::string& path, Format f, itk::ImageIOBase& io) {
   const double data_bytes = double(io.GetImageSizeInBytes());
   const std::string name = detail::format_name(f);
   auto truncated = [&](double have, double need) {
@@ -164,31 +286,30 @@ void check_complete(const std::string& path, Format f, itk::ImageIOBase& io) {
     gzFile gz = gzopen(path.c_str(), "rb");  // also reads uncompressed files
     if (!gz) throw Error(path + ": cannot open");
     std::vector<unsigned char> buf(1 << 16);
+    std::vector<unsigned char> head;
     long long total = 0;
     double vox_offset = -1;
+    std::optional<detail::NonFiniteScan> scan;
     for (;;) {
       const int n = gzread(gz, buf.data(), unsigned(buf.size()));
       if (n <= 0) break;
-      if (total == 0 && n >= 348) {
-        std::int32_t sz;
-        std::memcpy(&sz, buf.data(), 4);
-        const bool swap = sz != 348 && sz != 540;
-        auto rd = [&](std::size_t off, std::size_t len) {
-          unsigned char b[8];
-          std::memcpy(b, buf.data() + off, len);
-          if (swap) std::reverse(b, b + len);
-          return std::vector<unsigned char>(b, b + len);
-        };
-        if (swap) std::reverse(reinterpret_cast<unsigned char*>(&sz), reinterpret_cast<unsigned char*>(&sz) + 4);
-        if (sz == 348) {
-          float vo;
-          std::memcpy(&vo, rd(108, 4).data(), 4);
-          vox_offset = vo;
-        } else if (sz == 540 && n >= 540) {
-          std::int64_t vo;
-          std::memcpy(&vo, rd(168, 8).data(), 8);
-          vox_offset = double(vo);
+      const unsigned char* p = buf.data();
+      std::size_t len = std::size_t(n);
+      if (vox_offset < 0) {  // still collecting the header
+        head.insert(head.end(), p, p + len);
+        const std::size_t hsize = detail::nifti_header_size(head.data(), head.size());
+        if (hsize && head.size() >= hsize) {
+          const detail::NiftiHeader h = detail::check_nifti_header(path, head.data(), head.size());
+          vox_offset = h.vox_offset;
+          const bool is_float = h.datatype == 16 || h.datatype == 64;  // FLOAT32, FLOAT64
+          if (is_float) scan.emplace(h.datatype == 16 ? 4 : 8, h.swapped);
+          // Feed the data part of what was collected so far.
+          if (scan && double(head.size()) > vox_offset)
+            scan->feed(head.data() + std::size_t(vox_offset), head.size() - std::size_t(vox_offset));
         }
+      } else if (scan) {
+        const long long skip = std::max(0LL, static_cast<long long>(vox_offset) - total);
+        if (skip < n) scan->feed(p + skip, len - std::size_t(skip));
       }
       total += n;
     }
@@ -198,6 +319,9 @@ void check_complete(const std::string& path, Format f, itk::ImageIOBase& io) {
     gzclose(gz);
     if (!zmsg.empty()) throw Error(path + ": truncated or corrupt " + name + " file (" + zmsg + ")");
     if (vox_offset >= 0 && double(total) < vox_offset + data_bytes) truncated(double(total), vox_offset + data_bytes);
+    if (scan && scan->count() > 0)
+      throw Error(path + ": " + std::to_string(scan->count()) + " non-finite values (NaN or Inf) in the voxel data, the first at element " +
+                  std::to_string(scan->first_index()) + " (file order); HU values must be finite");
     return;
   }
   if (f == Format::Mha || f == Format::Mhd) {
@@ -233,7 +357,7 @@ void check_complete(const std::string& path, Format f, itk::ImageIOBase& io) {
   }
 }
 
-Volume read_file(const std::string& path) {
+Volume read_file(const std::string& path, std::vector<std::string>& warnings) {
   const Format f = detail::format_of(path);
   if (f == Format::Unknown) {
     if (looks_like_dicom_file(path))
@@ -243,6 +367,19 @@ Volume read_file(const std::string& path) {
   itk::ImageIOBase::Pointer io = make_io(f);
   const std::string name = detail::format_name(f);
   if (fs::file_size(path) == 0) throw Error(path + ": empty file, not a " + name + " volume");
+  // hpcm's header checks run before ITK sees the file: ITK would take some of these values
+  // (a negative spacing becomes positive, zero or NaN pixdim 1 mm), stop on others with a less
+  // precise message, or abort the process (a NaN NIfTI sform).
+  if (f == Format::Nrrd || f == Format::Nhdr) detail::check_nrrd_header(path, read_text_header(path, true));
+  if (f == Format::Mha || f == Format::Mhd) detail::check_metaimage_header(path, read_text_header(path, false));
+  if (f == Format::Nifti || f == Format::NiftiGz) {
+    unsigned char head[540] = {};
+    gzFile gz = gzopen(path.c_str(), "rb");
+    if (!gz) throw Error(path + ": cannot open");
+    const int n = gzread(gz, head, sizeof head);
+    gzclose(gz);
+    detail::check_nifti_header(path, head, n > 0 ? std::size_t(n) : 0);
+  }
   if (!io->CanReadFile(path.c_str()))
     throw Error(path + ": not a readable " + name + " file (corrupt or truncated header)");
   try {
@@ -252,7 +389,7 @@ Volume read_file(const std::string& path) {
     throw Error(path + ": corrupt " + name + " header: " + one_line(e));
   }
   check_header(path, *io);
-  check_complete(path, f, *io);
+  check_file_before_itk(path, f, *io);
   auto reader = itk::ImageFileReader<FloatImage>::New();
   reader->SetImageIO(io);
   reader->SetFileName(path);
@@ -261,59 +398,110 @@ Volume read_file(const std::string& path) {
   } catch (const itk::ExceptionObject& e) {
     throw Error(path + ": truncated or corrupt " + name + " file: " + one_line(e));
   }
-  return finish(path, reader->GetOutput());
+  return finish(path, reader->GetOutput(), warnings);
 }
 
-struct SeriesFiles {
-  detail::Geometry g;
-  std::vector<DicomSeriesInfo> info;
-  std::vector<std::vector<std::string>> files;
+// ---- DICOM series ----------------------------------------------------------------------------
+
+const gdcm::Tag kSopClass(0x0008, 0x0016), kModality(0x0008, 0x0060), kSeriesDescription(0x0008, 0x103e),
+    kSeriesUid(0x0020, 0x000e), kInstanceNumber(0x0020, 0x0013), kPosition(0x0020, 0x0032),
+    kOrientation(0x0020, 0x0037), kFrames(0x0028, 0x0008), kRows(0x0028, 0x0010), kColumns(0x0028, 0x0011),
+    kPixelSpacing(0x0028, 0x0030);
+
+// One file of a DICOM directory as read from its tags.
+struct DicomFile {
+  std::string name;       // file name inside the directory
+  bool readable = false;  // a DICOM file GDCM could parse
+  bool image = false;     // has an image matrix (Rows, Columns)
+  std::string series, modality, description;
+  detail::DicomSlice slice;
 };
 
-SeriesFiles scan_dicom_dir(const std::string& dir) {
-  std::error_code ec;
+DicomFile read_dicom_tags(const fs::path& path) {
+  DicomFile f;
+  f.name = path.filename().string();
+  f.slice.file = f.name;
+  gdcm::Reader reader;
+  reader.SetFileName(path.c_str());
+  const std::set<gdcm::Tag> tags = {kSopClass,   kModality, kSeriesDescription, kSeriesUid, kInstanceNumber, kPosition,
+                                    kOrientation, kFrames,   kRows,              kColumns,   kPixelSpacing};
+  try {
+    if (!reader.ReadSelectedTags(tags)) return f;
+  } catch (...) {
+    return f;  // GDCM throws on some malformed files: unreadable either way
+  }
+  const gdcm::DataSet& ds = reader.GetFile().GetDataSet();
+  const gdcm::FileMetaInformation& meta = reader.GetFile().GetHeader();
+  if (!ds.FindDataElement(kSopClass) && !meta.FindDataElement(gdcm::Tag(0x0002, 0x0002))) return f;
+  f.readable = true;
+  gdcm::StringFilter sf;
+  sf.SetFile(reader.GetFile());
+  const auto get = [&](const gdcm::Tag& t) { return ds.FindDataElement(t) ? trim(sf.ToString(t)) : std::string(); };
+  f.series = get(kSeriesUid);
+  f.modality = get(kModality);
+  f.description = get(kSeriesDescription);
+  detail::DicomSlice& s = f.slice;
+  s.rows = std::atoi(get(kRows).c_str());
+  s.columns = std::atoi(get(kColumns).c_str());
+  f.image = s.rows > 0 && s.columns > 0;
+  const std::string frames = get(kFrames);
+  s.frames = frames.empty() ? 1 : std::max(0, std::atoi(frames.c_str()));
+  s.instance = std::atoll(get(kInstanceNumber).c_str());
+  s.position_text = get(kPosition);
+  s.orientation_text = get(kOrientation);
+  s.spacing_text = get(kPixelSpacing);
+  s.has_position = detail::parse_ds(s.position_text, s.position.data(), 3);
+  s.has_orientation = detail::parse_ds(s.orientation_text, s.orientation.data(), 6);
+  s.has_spacing = detail::parse_ds(s.spacing_text, s.pixel_spacing.data(), 2);
+  return f;
+}
+
+struct DicomDirectory {
+  std::vector<DicomSeriesInfo> info;
+  std::vector<std::vector<detail::DicomSlice>> slices;  // per series
+  std::vector<std::string> unreadable;                  // files that are not readable DICOM
   std::size_t entries = 0;
+};
+
+// Reads the tags of every regular file of `dir` (not recursive; hidden files are skipped).
+DicomDirectory scan_dicom_dir(const std::string& dir) {
+  std::error_code ec;
+  std::vector<fs::path> files;
+  DicomDirectory out;
   for (const auto& e : fs::directory_iterator(dir, ec)) {
-    (void)e;
-    ++entries;
+    ++out.entries;
+    const std::string name = e.path().filename().string();
+    std::error_code fec;
+    if (name.empty() || name[0] == '.' || !e.is_regular_file(fec)) continue;
+    files.push_back(e.path());
   }
   if (ec) throw Error(dir + ": cannot list the directory: " + ec.message());
-  if (entries == 0) throw Error(dir + ": empty directory; expected the files of a DICOM series");
-  SeriesFiles out;
-  auto names = itk::GDCMSeriesFileNames::New();
-  names->SetGlobalWarningDisplay(false);
-  names->SetUseSeriesDetails(false);
-  names->SetRecursive(false);
-  try {
-    names->SetDirectory(dir);
-    for (const std::string& uid : names->GetSeriesUIDs()) {
-      std::vector<std::string> files = names->GetFileNames(uid);
-      if (files.empty()) continue;
-      DicomSeriesInfo s;
-      s.uid = uid;
-      s.files = int(files.size());
-      auto dio = itk::GDCMImageIO::New();
-      dio->SetGlobalWarningDisplay(false);
-      dio->SetFileName(files.front());
-      try {
-        dio->ReadImageInformation();
-        std::string v;
-        if (dio->GetValueFromTag("0008|0060", v)) s.modality = trim(v);
-        if (dio->GetValueFromTag("0008|103e", v)) s.description = trim(v);
-        if (dio->GetValueFromTag("0020|000e", v) && !trim(v).empty()) s.uid = trim(v);
-        s.columns = int(dio->GetDimensions(0));
-        s.rows = int(dio->GetDimensions(1));
-      } catch (const itk::ExceptionObject&) {
-        continue;  // not an image we can read: not listed
-      }
-      out.info.push_back(s);
-      out.files.push_back(std::move(files));
+  if (out.entries == 0) throw Error(dir + ": empty directory; expected the files of a DICOM series");
+  std::sort(files.begin(), files.end());
+  for (const fs::path& p : files) {
+    DicomFile f = read_dicom_tags(p);
+    if (!f.readable) {
+      out.unreadable.push_back(f.name);
+      continue;
     }
-  } catch (const itk::ExceptionObject& e) {
-    throw Error(dir + ": cannot scan the DICOM directory: " + one_line(e));
+    if (!f.image) continue;  // DICOMDIR, structured reports, ...: not part of an image series
+    std::size_t k = 0;
+    while (k < out.info.size() && out.info[k].uid != f.series) ++k;
+    if (k == out.info.size()) {
+      DicomSeriesInfo s;
+      s.uid = f.series;
+      s.modality = f.modality;
+      s.description = f.description;
+      s.columns = f.slice.columns;
+      s.rows = f.slice.rows;
+      out.info.push_back(s);
+      out.slices.emplace_back();
+    }
+    ++out.info[k].files;
+    out.slices[k].push_back(f.slice);
   }
   if (out.info.empty())
-    throw Error(dir + ": no DICOM image files among its " + std::to_string(entries) + " entries");
+    throw Error(dir + ": no DICOM image files among its " + std::to_string(out.entries) + " entries");
   return out;
 }
 
@@ -324,60 +512,129 @@ std::string series_line(const DicomSeriesInfo& s) {
   return t + ")";
 }
 
-Volume read_dicom_dir(const std::string& dir, const ReadOptions& opt) {
-  SeriesFiles sf = scan_dicom_dir(dir);
+std::string list_names(const std::vector<std::string>& names) {
+  std::string out;
+  for (std::size_t i = 0; i < names.size() && i < 4; ++i) out += (i ? ", " : "") + names[i];
+  if (names.size() > 4) out += " and " + std::to_string(names.size() - 4) + " more";
+  return out;
+}
+
+Volume read_dicom_dir(const std::string& dir, const ReadOptions& opt, std::vector<std::string>& warnings) {
+  DicomDirectory dd = scan_dicom_dir(dir);
+  if (!dd.unreadable.empty()) {
+    const std::string what = std::to_string(dd.unreadable.size()) + (dd.unreadable.size() == 1 ? " file is" : " files are") +
+                             " not readable DICOM: " + list_names(dd.unreadable);
+    if (!opt.dicom_skip_unreadable)
+      throw Error(dir + ": " + what + "; remove " + (dd.unreadable.size() == 1 ? "it" : "them") +
+                  ", or pass --dicom-skip-unreadable to ignore such files");
+    warnings.push_back(dir + ": skipped (--dicom-skip-unreadable): " + what);
+  }
   std::vector<std::size_t> ct;
-  for (std::size_t i = 0; i < sf.info.size(); ++i)
-    if (sf.info[i].modality == "CT") ct.push_back(i);
+  for (std::size_t i = 0; i < dd.info.size(); ++i)
+    if (dd.info[i].modality == "CT") ct.push_back(i);
   std::size_t pick = 0;
   if (!opt.series_uid.empty()) {
     bool found = false;
-    for (std::size_t i = 0; i < sf.info.size() && !found; ++i)
-      if (sf.info[i].uid == opt.series_uid) pick = i, found = true;
+    for (std::size_t i = 0; i < dd.info.size() && !found; ++i)
+      if (dd.info[i].uid == opt.series_uid) pick = i, found = true;
     if (!found) {
       std::string list;
-      for (const auto& s : sf.info) list += (list.empty() ? "" : "; ") + series_line(s);
+      for (const auto& s : dd.info) list += (list.empty() ? "" : "; ") + series_line(s);
       throw Error(dir + ": no series with --series " + opt.series_uid + " (the directory has: " + list + ")");
     }
-    if (sf.info[pick].modality != "CT")
+    if (dd.info[pick].modality != "CT")
       throw Error(dir + ": series " + opt.series_uid + " is " +
-                  (sf.info[pick].modality.empty() ? std::string("of unknown modality") : sf.info[pick].modality) +
+                  (dd.info[pick].modality.empty() ? std::string("of unknown modality") : dd.info[pick].modality) +
                   ", not CT; HU values need a CT series");
   } else {
     if (ct.empty()) {
       std::string list;
-      for (const auto& s : sf.info) list += (list.empty() ? "" : "; ") + series_line(s);
+      for (const auto& s : dd.info) list += (list.empty() ? "" : "; ") + series_line(s);
       throw Error(dir + ": no CT series in this DICOM directory (found: " + list + ")");
     }
     if (ct.size() > 1) {
       std::string list;
-      for (std::size_t i : ct) list += (list.empty() ? "" : "; ") + series_line(sf.info[i]);
+      for (std::size_t i : ct) list += (list.empty() ? "" : "; ") + series_line(dd.info[i]);
       throw Error(dir + ": " + std::to_string(ct.size()) + " CT series; choose one with --series UID: " + list);
     }
     pick = ct.front();
   }
-  const std::vector<std::string>& files = sf.files[pick];
-  auto dio = itk::GDCMImageIO::New();
-  dio->SetGlobalWarningDisplay(false);
-  try {
-    dio->SetFileName(files.front());
-    dio->ReadImageInformation();
-  } catch (const itk::ExceptionObject& e) {
-    throw Error(dir + ": corrupt DICOM file " + files.front() + ": " + one_line(e));
+  // Geometry from the tags of every slice, checked by hpcm (not ITK's average spacing).
+  const detail::DicomStack stack =
+      detail::plan_dicom_stack(dir, dd.slices[pick], opt.dicom_duplicates == DicomDuplicates::First);
+  if (!stack.dropped_duplicates.empty())
+    warnings.push_back(dir + ": --dicom-duplicates first: left out " + std::to_string(stack.dropped_duplicates.size()) +
+                       " slice(s) at an already used position: " + list_names(stack.dropped_duplicates));
+  const detail::Geometry& g = stack.geometry;
+  check_read_memory(dir, {std::size_t(g.dims.x), std::size_t(g.dims.y), std::size_t(g.dims.z)}, 4.0);
+  // Pixels slice by slice (GDCM applies each slice's RescaleSlope/Intercept: values are HU), so
+  // an error names the file.
+  const std::size_t slice_voxels = std::size_t(g.dims.x) * std::size_t(g.dims.y);
+  std::vector<float> data(slice_voxels * std::size_t(g.dims.z));
+  for (std::size_t k = 0; k < stack.files.size(); ++k) {
+    const std::string file = (fs::path(dir) / stack.files[k]).string();
+    auto dio = itk::GDCMImageIO::New();
+    dio->SetGlobalWarningDisplay(false);
+    auto reader = itk::ImageFileReader<FloatImage>::New();
+    reader->SetImageIO(dio);
+    reader->SetFileName(file);
+    try {
+      reader->Update();
+    } catch (const itk::ExceptionObject& e) {
+      throw Error(dir + ": cannot read the pixels of " + stack.files[k] + ": " + one_line(e));
+    }
+    const auto size = reader->GetOutput()->GetLargestPossibleRegion().GetSize();
+    if (int(size[0]) != g.dims.x || int(size[1]) != g.dims.y || size[2] != 1)
+      throw Error(dir + ": " + stack.files[k] + " holds a " + std::to_string(size[0]) + "x" + std::to_string(size[1]) + "x" +
+                  std::to_string(size[2]) + " image where its tags say " + std::to_string(g.dims.x) + "x" +
+                  std::to_string(g.dims.y));
+    std::copy_n(reader->GetOutput()->GetBufferPointer(), slice_voxels, data.begin() + std::ptrdiff_t(k * slice_voxels));
   }
-  check_header(dir, *dio, files.size());
-  auto reader = itk::ImageSeriesReader<FloatImage>::New();
-  reader->SetImageIO(dio);
-  reader->SetFileNames(files);
-  try {
-    reader->Update();  // GDCM applies RescaleSlope/Intercept: values are HU
-  } catch (const itk::ExceptionObject& e) {
-    throw Error(dir + ": cannot read DICOM series " + sf.info[pick].uid + ": " + one_line(e));
-  }
-  return finish(dir, reader->GetOutput());
+  return finish(dir, data.data(), g, warnings);
 }
 
 // ---- writing -------------------------------------------------------------------------------
+
+// Writes into a fresh temporary folder beside the target, then renames the file(s) into place:
+// a reader never sees a half-written file. For detached formats (.nhdr, .mhd) the data file
+// is moved first and the header last.
+// True when the header file `header` (.nhdr/.mhd text) names `data_name` as its data file.
+bool header_names_data_file(const fs::path& header, const std::string& data_name) {
+  std::ifstream in(header, std::ios::binary);
+  std::string line;
+  for (int i = 0; i < 200 && std::getline(in, line); ++i) {
+    const auto k = line.find(line.rfind("data file", 0) == 0 ? ':' : '=');
+    if ((line.rfind("data file", 0) == 0 || line.rfind("ElementDataFile", 0) == 0) && k != std::string::npos)
+      return fs::path(trim(line.substr(k + 1))).filename() == data_name;
+  }
+  return false;
+}
+
+// A detached data file `data` may be (over)written for header `target` only when it does not
+// exist yet or when `target` already exists and names it: two headers never share one data
+// file (a.nhdr and a.mhd would both write a.raw), and no unrelated file is overwritten.
+void check_data_file_free(const fs::path& target, const fs::path& data) {
+  std::error_code ec;
+  if (!fs::exists(fs::symlink_status(data, ec))) return;
+  const std::string name = data.filename().string();
+  if (fs::exists(target, ec) && header_names_data_file(target, name)) return;
+  std::string owner;
+  for (const char* ext : {".nhdr", ".mhd"}) {
+    fs::path h = data;
+    h.replace_filename(target.stem().string() + ext);
+    if (h != target && fs::exists(h, ec) && header_names_data_file(h, name)) owner = h.filename().string();
+  }
+  throw Error(target.string() + ": its data file " + name + " already exists" +
+              (owner.empty() ? std::string(" and is not this header's") : " and belongs to " + owner) +
+              "; writing would silently change that volume: choose another name or remove " + name);
+}
+
+// The data file ITK writes beside a detached header (uncompressed, as write_image sets it).
+fs::path predicted_data_file(const fs::path& target) {
+  fs::path d = target;
+  d.replace_extension(".raw");
+  return d;
+}
 
 // Writes into a fresh temporary folder beside the target, then renames the file(s) into place:
 // a reader never sees a half-written file. For detached formats (.nhdr, .mhd) the data file
@@ -402,6 +659,8 @@ class AtomicWrite {
     std::vector<fs::path> files;
     for (const auto& e : fs::directory_iterator(tmpdir_)) files.push_back(e.path());
     std::stable_partition(files.begin(), files.end(), [&](const fs::path& p) { return p.filename() != target_.filename(); });
+    for (const fs::path& p : files)
+      if (p.filename() != target_.filename()) check_data_file_free(target_, target_.parent_path() / p.filename());
     for (const fs::path& p : files) {
       std::error_code ec;
       fs::rename(p, target_.parent_path() / p.filename(), ec);
@@ -496,17 +755,34 @@ Volume read_volume_as_stored(const std::string& path, const ReadOptions& opt) {
   std::error_code ec;
   const fs::file_status st = fs::status(path, ec);
   if (ec || !fs::exists(st)) throw Error(path + ": no such file or directory");
-  try {
-    if (fs::is_directory(st)) return read_dicom_dir(path, opt);
-    if (!fs::is_regular_file(st)) throw Error(path + ": not a regular file or directory");
-    if (!opt.series_uid.empty())
-      throw Error(path + ": --series applies only to a DICOM series directory, not to a file");
-    return read_file(path);
-  } catch (const itk::ExceptionObject& e) {
-    throw Error(path + ": " + one_line(e));
-  } catch (const fs::filesystem_error& e) {
-    throw Error(path + ": " + e.what());
+  std::vector<std::string> warnings;
+  Volume v;
+  {
+    LibraryOutputCapture capture;
+    try {
+      if (fs::is_directory(st)) {
+        v = read_dicom_dir(path, opt, warnings);
+      } else {
+        if (!fs::is_regular_file(st)) throw Error(path + ": not a regular file or directory");
+        if (!opt.series_uid.empty())
+          throw Error(path + ": --series applies only to a DICOM series directory, not to a file");
+        v = read_file(path, warnings);
+      }
+    } catch (const Error& e) {
+      throw Error(e.what() + capture.detail());
+    } catch (const itk::ExceptionObject& e) {
+      throw Error(path + ": " + one_line(e) + capture.detail());
+    } catch (const fs::filesystem_error& e) {
+      throw Error(path + ": " + e.what() + capture.detail());
+    }
   }
+  for (const std::string& w : warnings) {
+    if (opt.warn)
+      opt.warn(w);
+    else
+      std::fprintf(stderr, "hpcm: warning: %s\n", w.c_str());
+  }
+  return v;
 }
 
 Volume read_volume(const std::string& path, const ReadOptions& opt) {
@@ -516,13 +792,34 @@ Volume read_volume(const std::string& path, const ReadOptions& opt) {
 Input load_input(const std::string& path, const InputOptions& opt) {
   ReadOptions ro;
   ro.series_uid = opt.series_uid;
+  ro.dicom_duplicates = opt.dicom_duplicates;
+  ro.dicom_skip_unreadable = opt.dicom_skip_unreadable;
   return prepare_input(read_volume_as_stored(path, ro), opt, path);
 }
 
 std::vector<DicomSeriesInfo> list_dicom_series(const std::string& dir) {
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) throw Error(dir + ": not a directory");
-  return scan_dicom_dir(dir).info;
+  LibraryOutputCapture capture;
+  try {
+    return scan_dicom_dir(dir).info;
+  } catch (const Error& e) {
+    throw Error(e.what() + capture.detail());
+  }
+}
+
+void check_output_path(const std::string& path) {
+  const Format f = detail::format_of(path);
+  if (std::find(kVolumeFormats.begin(), kVolumeFormats.end(), f) == kVolumeFormats.end())
+    throw Error(path + ": unsupported extension for a volume (supported: .nii, .nii.gz, .nrrd, .nhdr, .mha, .mhd)");
+  const fs::path target = fs::absolute(path);
+  std::error_code ec;
+  if (fs::is_directory(target, ec)) throw Error(path + ": is a folder; give a file name such as " + path + "/ct.nii.gz");
+  const fs::path parent = target.parent_path();
+  if (!fs::is_directory(parent, ec)) throw Error(path + ": cannot write: folder " + parent.string() + " does not exist");
+  if (::access(parent.c_str(), W_OK | X_OK) != 0)
+    throw Error(path + ": cannot write into " + parent.string() + " (" + std::strerror(errno) + ")");
+  if (f == Format::Nhdr || f == Format::Mhd) check_data_file_free(target, predicted_data_file(target));
 }
 
 void write_volume(const Volume& v, const std::string& path) {

@@ -34,6 +34,7 @@ void Simulation::set_params(const Params& p) {
     const State s = state();
     if (materials) rebuild_materials(model_, params_);
     backend_->load(model_, params_, s);
+    ++positions_version_;
     compute_anchors();
     compute_tool_limit();
     move_tool(requested_offset_);
@@ -45,6 +46,7 @@ void Simulation::set_params(const Params& p) {
 }
 
 void Simulation::reset() {
+  ++positions_version_;
   host_ = State::rest(model_);
   host_valid_ = true;
   backend_->load(model_, params_, host_);
@@ -167,27 +169,39 @@ FrameReport Simulation::step(const StepOptions& opt) {
   r.restored_links = rs.violated_links;
   r.restore_violation = rs.max_violation;
   b.mark(2);
+  // The integrity metrics are O(N): measured again only when positions may have changed
+  // (some brick had work), else the last values hold exactly.
+  const Index active_chainmail = b.active_bricks();
+  if (active_chainmail > 0) ++positions_version_;
   if (opt.link_violation) {
-    std::vector<Vec3> pos;
-    b.download_positions(pos);
-    r.max_link_violation = max_link_violation(model_, pos);
+    if (link_metric_.version != positions_version_) {
+      std::vector<Vec3> pos;
+      b.download_positions(pos);
+      link_metric_ = {positions_version_, max_link_violation(model_, pos), 0};
+    }
+    r.max_link_violation = link_metric_.value;
   }
   b.mark(3);
   SpeedStats sp;
   b.velocity_layer(opt.speeds ? &sp : nullptr);  // X+ -> X_{t+1}, V_t; boundary clamp; frame-end snapshot
   b.mark(4);
+  if (b.active_bricks() > active_chainmail) ++positions_version_;
   if (opt.cell_jacobian) {
-    std::vector<Vec3> pos;
-    b.download_positions(pos);
-    const CellJacobianStats cj = cell_jacobian(model_, pos);
-    r.min_cell_jacobian = cj.min_det;
-    r.folded_cells = cj.folded;
+    if (jacobian_metric_.version != positions_version_) {
+      std::vector<Vec3> pos;
+      b.download_positions(pos);
+      const CellJacobianStats cj = cell_jacobian(model_, pos);
+      jacobian_metric_ = {positions_version_, cj.min_det, cj.folded};
+    }
+    r.min_cell_jacobian = jacobian_metric_.value;
+    r.folded_cells = jacobian_metric_.count;
   }
   r.snapshot_ms = b.elapsed_ms(0, 1);
   r.chainmail_ms = b.elapsed_ms(1, 2);
   r.inertia_ms = b.elapsed_ms(3, 4);
   r.sim_total_ms = r.snapshot_ms + r.chainmail_ms + r.inertia_ms;
   r.active_bricks = b.active_bricks();
+  r.active_elements = b.active_elements();
   if (opt.speeds) {
     r.moved_elements = sp.moved;
     for (int t = 0; t < kTissueCount; ++t) {

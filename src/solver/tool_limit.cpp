@@ -67,7 +67,9 @@ struct Search {
     const int n_b = b == 0 ? m.dims.x : (b == 1 ? m.dims.y : m.dims.z);
     double best = kInfD;
     while (!heap.empty()) {
-      const auto [d, e] = heap.top();
+      // Named copies, not a structured binding: the lambda below captures d (clang 14 rejects that).
+      const double d = heap.top().first;
+      const Index e = heap.top().second;
       heap.pop();
       if (d > dist[static_cast<std::size_t>(e)]) continue;
       if (d >= best) break;

@@ -155,34 +155,11 @@ TEST(DeadZone, JustAboveEpsilonDrivesVelocity) {
 TEST(DeadZone, ZeroDisablesIt) {
   DynamicsParams p = simple_params(0.0f);
   p.dead_zone = 0.0f;
-  p.sleep_speed = 0.0f;  // a velocity of 1e-6 would otherwise come to rest
   const LayerConstants k = K(p);
   const Vec3 pre{0, 0, 0}, post{1e-6f, 0, 0};
   Vec3 v{0, 0, 0};
   velocity_update(k, kSkin, false, pre, post, pre, v);
   EXPECT_FLOAT_EQ(v.x, 1e-6f);  // V = 0 * 0 + 1 * 1e-6
-}
-
-// A velocity below dynamics.sleep_speed comes to rest (V = 0, no inertial step); one at or
-// above it is kept. Clamped velocities are never zeroed.
-TEST(Sleep, SmallVelocityComesToRest) {
-  DynamicsParams p = simple_params(0.5f);
-  p.dead_zone = 0.0f;
-  p.sleep_speed = 1e-4f;
-  const LayerConstants k = K(p);
-  const Vec3 pre{3, 4, 5};
-  Vec3 v{1.5e-4f, 0, 0};  // 0.5 * 1.5e-4 = 7.5e-5 < 1e-4 after the update
-  Vec3 x = velocity_update(k, kSkin, false, pre, pre, pre, v);
-  EXPECT_EQ(v, Vec3{});
-  EXPECT_EQ(x, pre);
-  v = Vec3{4e-4f, 0, 0};  // 2e-4 >= 1e-4: kept
-  x = velocity_update(k, kSkin, false, pre, pre, pre, v);
-  EXPECT_FLOAT_EQ(v.x, 2e-4f);
-  EXPECT_FLOAT_EQ(x.x, 3.0f + 2e-4f);
-  p.sleep_speed = 0.0f;  // 0: never
-  Vec3 w{1e-30f, 0, 0};
-  velocity_update(K(p), kSkin, false, pre, pre, pre, w);
-  EXPECT_GT(w.x, 0.0f);
 }
 
 // ---------------------------------------------------------------- §5.4 simple (B)

@@ -68,3 +68,43 @@ TEST(ExperimentChecks, Spec8HoldsOnSmallPhantom) {
                 c.label.c_str(), c.initial[1], c.peak[1], c.auc[1], c.initial[2], c.peak[2], c.auc[2], c.initial[3],
                 c.peak[3], c.auc[3]);
 }
+
+// Lattices of other sizes and shapes. The overshoot, reversal and hierarchy checks need room
+// for the tissue to swing (documented for lattices of 48 or more per axis); the integrity
+// checks (every link in its box after every ChainMail stage, no folded cell at any frame end)
+// and settling hold on every lattice the CLI accepts, under all three conditions.
+class ExperimentIntegrity : public ::testing::TestWithParam<Int3> {};
+
+TEST_P(ExperimentIntegrity, LinksInBoxFoldFreeAndSettledOnEveryFrame) {
+  PhantomOptions o;
+  o.dims = GetParam();
+  const Params p;
+  const Model m = build_model(make_phantom(o), p);
+  ExperimentOptions opt;
+  opt.settle_frames = 2000;
+  const ExperimentResult r = run_experiment(m, p, opt);
+  const std::set<std::string> required = {"A_finite",       "B_finite",       "C_finite",       "A_within_margin",
+                                          "B_within_margin", "C_within_margin", "A_settled",      "B_settled",
+                                          "C_settled",       "A_links_in_box", "B_links_in_box", "C_links_in_box",
+                                          "A_fold_free",     "B_fold_free",    "C_fold_free"};
+  std::set<std::string> seen;
+  for (const Check& c : r.checks) {
+    if (!required.count(c.name)) continue;
+    seen.insert(c.name);
+    EXPECT_TRUE(c.holds) << o.dims.x << "x" << o.dims.y << "x" << o.dims.z << " " << c.name << ": value " << c.value
+                         << ", threshold " << c.threshold;
+  }
+  EXPECT_EQ(seen, required);
+  for (const auto& c : r.conditions) {
+    EXPECT_EQ(c.frames.size(), 150u);
+    for (std::size_t k = 0; k < c.frames.size(); ++k)
+      EXPECT_LE(c.frames[k].max_link_violation, 1e-5f) << c.label << " frame " << k + 1;
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Lattices, ExperimentIntegrity,
+                         ::testing::Values(Int3{16, 16, 12}, Int3{32, 32, 24}, Int3{40, 24, 20}),
+                         [](const ::testing::TestParamInfo<Int3>& i) {
+                           return std::to_string(i.param.x) + "x" + std::to_string(i.param.y) + "x" +
+                                  std::to_string(i.param.z);
+                         });

@@ -1,0 +1,74 @@
+// Hostile parameter and scenario files (issue 15): a directory, /dev/zero, binary data and
+// huge files are clear errors (bounded reads, no hang); keyframe offsets are bounded so that
+// a scenario accepted by --check-scenario cannot overflow to a non-finite tool offset mid-run.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "hpcm/config.hpp"
+
+namespace fs = std::filesystem;
+namespace cfg = hpcm::config;
+
+namespace {
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const hpcm::Error& e) {
+    return e.what();
+  }
+  return "NO ERROR";
+}
+fs::path scratch(const std::string& name) {
+  const fs::path d = fs::temp_directory_path() / ("hpcm_hostile_cfg_" + name + "_" + std::to_string(getpid()));
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+}  // namespace
+
+TEST(HostileConfigFiles, DirectoryIsNotAParameterFile) {
+  const fs::path d = scratch("dir");
+  EXPECT_NE(error_of([&] { cfg::load_params(d.string()); }).find("is a directory, not a parameter file"), std::string::npos);
+  EXPECT_NE(error_of([&] { cfg::load_scenario(d.string()); }).find("is a directory, not a scenario file"), std::string::npos);
+  fs::remove_all(d);
+}
+
+TEST(HostileConfigFiles, DevZeroIsReadBoundedAndRefused) {
+  if (!fs::exists("/dev/zero")) GTEST_SKIP() << "no /dev/zero";
+  const std::string msg = error_of([] { cfg::load_params("/dev/zero"); });
+  EXPECT_NE(msg.find("/dev/zero: larger than 4 MiB"), std::string::npos) << msg;
+}
+
+TEST(HostileConfigFiles, BinaryAndOversizedFilesAreRefused) {
+  const fs::path d = scratch("bin");
+  {
+    std::ofstream f(d / "nul.toml", std::ios::binary);
+    f << "[dynamics]\nalpha = 0.5\n" << '\0' << "beta = 1.0\n";
+  }
+  EXPECT_NE(error_of([&] { cfg::load_params((d / "nul.toml").string()); }).find("NUL bytes"), std::string::npos);
+  {
+    std::ofstream f(d / "big.toml", std::ios::binary);
+    const std::string comment = "# " + std::string(1000, 'x') + "\n";
+    for (int i = 0; i < 5000; ++i) f << comment;  // 5 MB of comments
+  }
+  EXPECT_NE(error_of([&] { cfg::load_params((d / "big.toml").string()); }).find("larger than 4 MiB"), std::string::npos);
+  EXPECT_NE(error_of([&] { cfg::load_params((d / "missing.toml").string()); }).find("missing.toml: cannot open"),
+            std::string::npos);
+  fs::remove_all(d);
+}
+
+TEST(HostileConfigFiles, KeyframeOffsetsAreBoundedSoTheyStayFinite) {
+  // Two finite offsets near FLT_MAX would make the interpolated tool offset infinite.
+  const std::string msg = error_of([] {
+    cfg::parse_scenario("[scenario]\nframes = 30\n[[grab]]\ncentre = [4, 4, 4]\nrelease = 20\n"
+                        "keyframes = [[5, 3e38, 0, 0], [10, -3e38, 0, 0]]\n",
+                        "huge.toml");
+  });
+  EXPECT_NE(msg.find("huge.toml: grab[0].keyframes[0][1] (dx) = "), std::string::npos) << msg;
+  EXPECT_NE(msg.find("out of range [-10000, 10000]"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("(line 6)"), std::string::npos) << msg;
+  EXPECT_NO_THROW(cfg::parse_scenario("[scenario]\nframes = 30\n[[grab]]\nrelease = 20\nkeyframes = [[5, 0, -10000, 0]]\n", "ok.toml"));
+}

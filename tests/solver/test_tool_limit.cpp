@@ -1,0 +1,98 @@
+// The tool limit: a pull the tissue cannot stretch to is limited to the feasible offset
+// (Gibson's rule), flagged, and leaves every link in its box, under all three dynamics modes.
+//
+// The case: an anchored bone slab with two cells of fat on top and air above that; the top fat
+// cell is grabbed and pulled 6 cells away from the bone. Only the two links between the grab
+// and the bone stand between the tool and an anchor, so the tool can move exactly their
+// stretch slack (max_d - 1 each), not 6 cells.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+
+#include "hpcm/simulation.hpp"
+#include "hpcm/state.hpp"
+#include "solver_test_util.hpp"
+
+using namespace hpcm;
+
+namespace {
+
+constexpr int kBoneTop = 9;  // bone for y <= 9, fat at y = 10, 11, air above
+const Int3 kDims{20, 32, 12};
+
+Model fat_over_bone(const Params& p) {
+  return build_model(test::make_volume(kDims,
+                                       [](int, int y, int) {
+                                         return y <= kBoneTop ? 1000.0f : y <= kBoneTop + 2 ? -100.0f : -1024.0f;
+                                       }),
+                     p);
+}
+
+// The stretch slack of the two links from the grabbed fat cell down to the bone.
+float chain_slack(const Model& m, int x, int z) {
+  float s = 0;
+  for (int y = kBoneTop; y <= kBoneTop + 1; ++y) s += m.link(1, m.index(x, y, z)).max_d - 1.0f;
+  return s;
+}
+
+class ToolLimit : public ::testing::TestWithParam<DampingMode> {};
+
+TEST_P(ToolLimit, SixCellPullOverTwoCellsOfFatIsLimitedToTheirSlack) {
+  Params p;
+  p.dynamics.mode = GetParam();
+  const Model m = fat_over_bone(p);
+  ASSERT_EQ(static_cast<Tissue>(m.tissue[static_cast<std::size_t>(m.index(10, kBoneTop, 6))]), Tissue::Bone);
+  ASSERT_EQ(static_cast<Tissue>(m.tissue[static_cast<std::size_t>(m.index(10, kBoneTop + 2, 6))]), Tissue::SkinFat);
+  const float slack = chain_slack(m, 10, 6);
+  std::printf("chain slack %.6f\n", slack);
+  ASSERT_GT(slack, 0.0f);
+  ASSERT_LT(slack, 1.0f) << "two fat links cannot stretch a whole cell";
+
+  Simulation sim(m, p);
+  sim.grab(m.index(10, kBoneTop + 2, 6), 0.5f);
+  ASSERT_EQ(sim.grabbed().size(), 1u);
+  EXPECT_NEAR(sim.tool_limit_hi().y, slack, 1e-5f);
+
+  StepOptions opt;
+  opt.link_violation = true;
+  opt.cell_jacobian = true;
+  int limited_frames = 0;
+  for (int f = 1; f <= 20; ++f) {  // 6 cells over 20 frames, as in the paper protocol
+    const float want = 0.3f * float(f);
+    sim.move_tool(Vec3{0.0f, want, 0.0f});
+    const FrameReport r = sim.step(opt);
+    EXPECT_NEAR(r.requested_offset, want, 1e-5f) << "frame " << f;
+    const bool should_limit = want > slack;
+    EXPECT_EQ(r.tool_limited, should_limit) << "frame " << f;
+    EXPECT_EQ(sim.tool_limited(), should_limit) << "frame " << f;
+    limited_frames += r.tool_limited ? 1 : 0;
+    // The achieved offset is the closest feasible one: all the slack there is, no more.
+    EXPECT_NEAR(sim.tool_offset().y, std::min(want, slack), 1e-5f) << "frame " << f;
+    EXPECT_EQ(sim.tool_offset().x, 0.0f);
+    EXPECT_EQ(sim.tool_offset().z, 0.0f);
+    EXPECT_LE(r.max_link_violation, 1e-5f) << "frame " << f;
+    EXPECT_GT(r.min_cell_jacobian, 0.0f) << "frame " << f;
+  }
+  EXPECT_EQ(limited_frames, 20 - int(std::floor(slack / 0.3f)));
+  sim.release();
+  for (int f = 0; f < 60; ++f) {
+    const FrameReport r = sim.step(opt);
+    EXPECT_FALSE(r.tool_limited);
+    EXPECT_LE(r.max_link_violation, 1e-5f) << "idle frame " << f;
+    EXPECT_GT(r.min_cell_jacobian, 0.0f) << "idle frame " << f;
+  }
+  // Bone stays put (anchored), whatever the dynamics did to the fat.
+  for (int x = 0; x < kDims.x; ++x)
+    EXPECT_EQ(sim.state().pos[m.index(x, kBoneTop, 6)], m.rest(m.index(x, kBoneTop, 6)));
+}
+
+INSTANTIATE_TEST_SUITE_P(Modes, ToolLimit,
+                         ::testing::Values(DampingMode::None, DampingMode::Simple, DampingMode::Viscoelastic),
+                         [](const ::testing::TestParamInfo<DampingMode>& i) {
+                           return std::string(i.param == DampingMode::None     ? "A_none"
+                                              : i.param == DampingMode::Simple ? "B_simple"
+                                                                                : "C_viscoelastic");
+                         });
+
+}  // namespace
