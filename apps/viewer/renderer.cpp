@@ -152,12 +152,12 @@ void SliceRenderer::draw(int slot, const ViewTransform& t, float sx, float sy, f
   glDisable(GL_SCISSOR_TEST);
 }
 
-Capture::~Capture() {
+Offscreen::~Offscreen() {
   if (rb_) glDeleteRenderbuffers(1, &rb_);
   if (fbo_) glDeleteFramebuffers(1, &fbo_);
 }
 
-void Capture::begin(int w, int h) {
+void Offscreen::bind(int w, int h) {
   if (w != w_ || h != h_ || !fbo_) {
     if (rb_) glDeleteRenderbuffers(1, &rb_);
     if (fbo_) glDeleteFramebuffers(1, &fbo_);
@@ -169,8 +169,8 @@ void Capture::begin(int w, int h) {
     glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, rb_);
     if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
       glBindFramebuffer(GL_FRAMEBUFFER, 0);
-      throw Error("OpenGL: cannot create a " + std::to_string(w) + "x" + std::to_string(h) +
-                  " off-screen framebuffer for the screenshot");
+      throw Error("OpenGL: cannot create a " + std::to_string(w) + "x" + std::to_string(h) + " off-screen framebuffer for " +
+                  what_);
     }
     w_ = w;
     h_ = h;
@@ -178,7 +178,14 @@ void Capture::begin(int w, int h) {
   glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
 }
 
-Image Capture::end() {
+void Offscreen::blit_to(GLuint target) const {
+  glBindFramebuffer(GL_READ_FRAMEBUFFER, fbo_);
+  glBindFramebuffer(GL_DRAW_FRAMEBUFFER, target);
+  glBlitFramebuffer(0, 0, w_, h_, 0, 0, w_, h_, GL_COLOR_BUFFER_BIT, GL_NEAREST);
+  glBindFramebuffer(GL_FRAMEBUFFER, target);
+}
+
+Image Offscreen::read() const {
   Image img;
   img.width = w_;
   img.height = h_;
@@ -196,9 +203,6 @@ Image Capture::end() {
       dst[3 * x + 2] = src[4 * x + 2];
     }
   }
-  glBindFramebuffer(GL_DRAW_FRAMEBUFFER, 0);
-  glBlitFramebuffer(0, 0, w_, h_, 0, 0, w_, h_, GL_COLOR_BUFFER_BIT, GL_NEAREST);
-  glBindFramebuffer(GL_FRAMEBUFFER, 0);
   return img;
 }
 

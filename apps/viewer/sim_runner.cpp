@@ -18,20 +18,21 @@ bool materials_differ(const Params& a, const Params& b) {
   return false;
 }
 
+double length_mm(Vec3 offset, const std::array<double, 3>& spacing) {
+  double s = 0;
+  for (int a = 0; a < 3; ++a) s += double(offset[a]) * spacing[a] * double(offset[a]) * spacing[a];
+  return std::sqrt(s);
+}
+
 std::string limited_pull_text(Vec3 achieved, Vec3 requested, const std::array<double, 3>& spacing) {
-  auto mm = [&](Vec3 v) {
-    double s = 0;
-    for (int a = 0; a < 3; ++a) s += double(v[a]) * spacing[a] * double(v[a]) * spacing[a];
-    return std::sqrt(s);
-  };
-  char buf[400];
+  char buf[512];
   std::snprintf(buf, sizeof buf,
-                "pull limited: the tool moved %.2f of the requested %.2f lattice units (%.2f of %.2f mm; %.2f lattice "
-                "units short): the tissue between the tool and what holds it (anchored bone, the lattice border) "
-                "cannot stretch further; achieved "
-                "offset (%.2f, %.2f, %.2f), requested (%.2f, %.2f, %.2f)",
-                double(norm(achieved)), double(norm(requested)), mm(achieved), mm(requested),
-                double(norm(requested - achieved)), double(achieved.x), double(achieved.y), double(achieved.z),
+                "pull limited: the tool moved %.2f of the requested %.2f lattice units (%.2f of %.2f mm), %.2f lattice "
+                "units (%.2f mm) short: the tissue between the tool and what holds it (anchored bone, the lattice "
+                "border) cannot stretch further; achieved offset (%.2f, %.2f, %.2f), requested (%.2f, %.2f, %.2f)",
+                double(norm(achieved)), double(norm(requested)), length_mm(achieved, spacing),
+                length_mm(requested, spacing), double(norm(requested - achieved)),
+                length_mm(requested - achieved, spacing), double(achieved.x), double(achieved.y), double(achieved.z),
                 double(requested.x), double(requested.y), double(requested.z));
   return buf;
 }

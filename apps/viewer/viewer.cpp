@@ -83,6 +83,7 @@ Viewer::~Viewer() {
   runner_.reset();  // joins the simulation thread (it wakes the event loop through GLFW)
   renderer_.reset();
   capture_.reset();
+  scene_.reset();
   if (imgui_ready_) {
     ImGui_ImplOpenGL3_Shutdown();
     ImGui_ImplGlfw_Shutdown();
@@ -221,7 +222,8 @@ void Viewer::open_window() {
 
   renderer_ = std::make_unique<SliceRenderer>();
   renderer_->init();
-  capture_ = std::make_unique<Capture>();
+  capture_ = std::make_unique<Offscreen>("the screenshot");
+  scene_ = std::make_unique<Offscreen>("the slice views");
 }
 
 int Viewer::run() {
@@ -316,28 +318,58 @@ void Viewer::draw(bool capture, Image* out) {
   if (plots_in_cell_) draw_plots_window();
   draw_view_overlays();
   ImGui::Render();
+  const double t_ui = glfwGetTime();
 
-  update_meshes();
   int fbw = 0, fbh = 0, ww = 0, wh = 0;
   glfwGetFramebufferSize(win_, &fbw, &fbh);
   glfwGetWindowSize(win_, &ww, &wh);
-  const float sx = ww > 0 ? float(fbw) / float(ww) : 1.0f, sy = wh > 0 ? float(fbh) / float(wh) : 1.0f;
-  if (capture) capture_->begin(fbw, fbh);
-  glViewport(0, 0, fbw, fbh);
-  glClearColor(0.06f, 0.065f, 0.08f, 1.0f);
-  glClear(GL_COLOR_BUFFER_BIT);
-  for (int p = 0; p < kPlaneCount; ++p)
-    if (views_[p].visible) renderer_->draw(p, views_[p].xf, sx, sy, float(wh), wire_);
+  update_meshes();
+  draw_slice_views(fbw, fbh, ww, wh);
+  const double t_views = glfwGetTime();
+  // The frame: the slice views as drawn last, the panel, tool and HUD on top.
+  if (capture) capture_->bind(fbw, fbh);
+  scene_->blit_to(capture ? capture_->id() : 0);
   glViewport(0, 0, fbw, fbh);
   ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
-  if (capture && out) *out = capture_->end();
-  else if (capture) capture_->end();
+  if (capture) {
+    if (out) *out = capture_->read();
+    capture_->blit_to(0);  // the window shows what was captured
+  }
   glfwSwapBuffers(win_);
+  if (collect_samples_)
+    bench_draws_.push_back({(t_ui - last_draw_start_) * 1e3, (t_views - t_ui) * 1e3, (glfwGetTime() - t_views) * 1e3});
   ++display_count_;
   const double now = glfwGetTime();
   display_meter_.add(now, display_count_);
   sim_meter_.add(now, sim_frames_seen_);
   runner_->note_display_frame();
+}
+
+// Software rasterisers (Mesa's llvmpipe) spend most of a frame on the slice meshes' triangles;
+// while only the tool, the panel or the HUD change, the views drawn last are copied instead.
+void Viewer::draw_slice_views(int fbw, int fbh, int ww, int wh) {
+  SceneKey key;
+  key.fbw = fbw;
+  key.fbh = fbh;
+  key.ww = ww;
+  key.wh = wh;
+  key.wire = wire_;
+  for (int p = 0; p < kPlaneCount; ++p) {
+    const View& v = views_[p];
+    if (v.visible) key.views[p] = {v.xf.x0, v.xf.y0, v.xf.w, v.xf.h, v.xf.zoom, v.xf.pan.x, v.xf.pan.y};
+  }
+  if (!scene_stale_ && key == scene_key_) return;
+  scene_->bind(fbw, fbh);
+  const float sx = ww > 0 ? float(fbw) / float(ww) : 1.0f, sy = wh > 0 ? float(fbh) / float(wh) : 1.0f;
+  glViewport(0, 0, fbw, fbh);
+  glClearColor(0.06f, 0.065f, 0.08f, 1.0f);
+  glClear(GL_COLOR_BUFFER_BIT);
+  for (int p = 0; p < kPlaneCount; ++p)
+    if (views_[p].visible) renderer_->draw(p, views_[p].xf, sx, sy, float(wh), wire_);
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  scene_key_ = key;
+  scene_stale_ = false;
+  ++scene_draws_;
 }
 
 void Viewer::update_layout() {
@@ -408,6 +440,7 @@ void Viewer::update_meshes() {
       slice_positions(m, v.plane, v.slice, pos, v.verts);
       const auto sz = slice_size(m, v.plane);
       renderer_->upload_positions(p, sz[0], sz[1], v.verts);
+      scene_stale_ = true;
     }
     if (moved[p] || in.seen_overlay != colour_.overlay || in.seen_air != colour_.overlay_air) {
       v.overlay_seen = slice_overlay_max(m, v.plane, v.slice, pos, prev, colour_.overlay, colour_.overlay_air);
@@ -432,6 +465,7 @@ void Viewer::update_meshes() {
     if (geometry || (moved[p] && colour_.overlay != Overlay::None) || !(in.colours == colour_)) {
       slice_colours(m, v.plane, v.slice, pos, prev, colour_, v.cols);
       renderer_->upload_colours(p, v.cols);
+      scene_stale_ = true;
     }
     in = {true, shown_->model_id, shown_->positions_id, v.slice, colour_.overlay, colour_.overlay_air, colour_};
   }
@@ -641,8 +675,9 @@ void Viewer::draw_view_overlays() {
       dl->AddText(ImVec2(r0.x + 6, r0.y + 36), IM_COL32(220, 220, 220, 230), rates_text().c_str());
       const ToolView& t = shown_->tool;
       if (t.held && t.limited) {
-        std::snprintf(buf, sizeof buf, "pull limited: %.2f of the requested %.2f lattice units", double(norm(t.achieved)),
-                      double(norm(t.requested)));
+        std::snprintf(buf, sizeof buf, "pull limited: %.2f of the requested %.2f lattice units, %.2f (%.1f mm) short",
+                      double(norm(t.achieved)), double(norm(t.requested)), double(norm(t.requested - t.achieved)),
+                      length_mm(t.requested - t.achieved, m.spacing));
         dl->AddText(ImVec2(r0.x + 6, r0.y + 52), kLimitColour, buf);
       }
     }

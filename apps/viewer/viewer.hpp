@@ -23,7 +23,7 @@ struct ImDrawList;
 namespace hpcm::viewer {
 
 class SliceRenderer;
-class Capture;
+class Offscreen;
 
 /// What the viewer starts with, loaded and validated before the window opens.
 struct Session {
@@ -94,6 +94,7 @@ class Viewer {
   void draw(bool capture, Image* out);
   void update_layout();
   void update_meshes();
+  void draw_slice_views(int fbw, int fbh, int ww, int wh);  ///< into scene_, when they changed
   void handle_input();
   void draw_panel();
   void panel_run_controls();
@@ -149,11 +150,30 @@ class Viewer {
   std::string sim_error_;              ///< first error of the simulation thread (scripted runs stop on it)
   bool collect_samples_ = false;       ///< --bench-drag: keep every frame's sample
   std::vector<FrameSample> bench_samples_;
+  /// --bench-drag: where a display frame's time goes (ms), to tell rendering from the rest.
+  struct DrawTiming {
+    double ui = 0;      ///< panel, plots and overlays built (Dear ImGui, CPU)
+    double views = 0;   ///< slice meshes rebuilt, uploaded and drawn off-screen (only when changed)
+    double gl = 0;      ///< views copied, panel and overlays drawn, buffers swapped (a software
+                        ///< rasteriser such as Mesa's llvmpipe draws the pixels here)
+  };
+  std::vector<DrawTiming> bench_draws_;
 
   GLFWwindow* win_ = nullptr;
   bool glfw_ready_ = false, imgui_ready_ = false;
   std::unique_ptr<SliceRenderer> renderer_;
-  std::unique_ptr<Capture> capture_;
+  std::unique_ptr<Offscreen> capture_;  ///< screenshots
+  std::unique_ptr<Offscreen> scene_;    ///< the slice views, drawn again only when they change
+  /// What the cached slice views were drawn from (besides the meshes, see scene_stale_).
+  struct SceneKey {
+    int fbw = 0, fbh = 0, ww = 0, wh = 0;
+    bool wire = false;
+    std::array<std::array<float, 7>, kPlaneCount> views{};  ///< x0, y0, w, h, zoom, pan; 0 when hidden
+    bool operator==(const SceneKey&) const = default;
+  };
+  SceneKey scene_key_;
+  bool scene_stale_ = true;  ///< a mesh was uploaded since the views were drawn
+  long scene_draws_ = 0;     ///< times the slice views were drawn (the benchmark reports it)
   std::array<View, 3> views_{};
   Layout layout_ = Layout::All;
   Rect plots_rect_;

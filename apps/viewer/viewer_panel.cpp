@@ -189,9 +189,9 @@ void Viewer::panel_run_controls() {
     ImGui::SameLine();
     ImGui::Text("offset (%.2f, %.2f, %.2f)", double(t.achieved.x), double(t.achieved.y), double(t.achieved.z));
     if (t.limited)
-      ImGui::TextColored(ImVec4(1, 0.6f, 0.15f, 1), "pull limited: asked (%.2f, %.2f, %.2f), %.2f short",
+      ImGui::TextColored(ImVec4(1, 0.6f, 0.15f, 1), "pull limited: asked (%.2f, %.2f, %.2f), %.2f lattice units (%.2f mm) short",
                          double(t.requested.x), double(t.requested.y), double(t.requested.z),
-                         double(norm(t.requested - t.achieved)));
+                         double(norm(t.requested - t.achieved)), length_mm(t.requested - t.achieved, model.spacing));
   }
 }
 

@@ -126,18 +126,26 @@ int Viewer::run_bench() {
   runner_->set_running(true);
   collect_samples_ = true;
   bench_samples_.clear();
+  bench_draws_.clear();
   const double t0 = glfwGetTime();
   const long display0 = display_count_;
-  std::vector<double> frame_ms, frame_end;
+  std::vector<double> frame_ms, frame_end, wait_ms;
   double last = t0;
   float max_requested = 0, max_shortfall = 0;
+  long new_positions = 0;  // display frames that showed new tissue positions
+  const long scene0 = scene_draws_;
+  std::uint64_t positions_seen = shown_->positions_id;
   for (;;) {
     const double t = glfwGetTime() - t0;
     if (t >= seconds) break;
     const float pull = 6.0f * 0.5f * (1.0f - std::cos(float(2.0 * M_PI * t / 4.0)));
     runner_->move_tool({0, -pull, 0});
-    wait_for_display_slot();
+    const double before_wait = glfwGetTime();
+    wait_for_display_slot();  // the frame cap (--max-fps) and window events; never a simulation frame
+    wait_ms.push_back((glfwGetTime() - before_wait) * 1000.0);
     take_frame();
+    if (shown_->positions_id != positions_seen) ++new_positions;
+    positions_seen = shown_->positions_id;
     draw(false, nullptr);
     const ToolView& tool = shown_->tool;
     if (tool.held) {
@@ -151,6 +159,7 @@ int Viewer::run_bench() {
     if (!sim_error_.empty()) throw Error("simulation failed: " + sim_error_);
   }
   const double elapsed = glfwGetTime() - t0;
+  bench_draws_.resize(frame_ms.size());  // the drag's frames, not those drawn while settling
   runner_->release();
   runner_->set_running(false);
   settle();
@@ -178,6 +187,22 @@ int Viewer::run_bench() {
   std::printf("  simulation: %ld frames, %.1f frames/s (SimTotal median %.1f ms, 95th percentile %.1f ms; wall per "
               "frame on its thread median %.1f ms, including the positions download)\n",
               sims, double(sims) / elapsed, percentile(total, 0.5), percentile(total, 0.95), percentile(wall, 0.5));
+  std::vector<double> ui, views, gl;
+  for (const DrawTiming& d : bench_draws_) {
+    ui.push_back(d.ui);
+    views.push_back(d.views);
+    gl.push_back(d.gl);
+  }
+  bench_draws_.clear();
+  const char* gl_renderer = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
+  std::printf("  display frame time, median (95th percentile) ms: frame cap and events %.1f (%.1f), panel and "
+              "overlays %.1f (%.1f), slice views %.1f (%.1f), copy, panel and swap %.1f (%.1f); OpenGL renderer: %s\n",
+              percentile(wait_ms, 0.5), percentile(wait_ms, 0.95), percentile(ui, 0.5), percentile(ui, 0.95),
+              percentile(views, 0.5), percentile(views, 0.95), percentile(gl, 0.5), percentile(gl, 0.95),
+              gl_renderer ? gl_renderer : "unknown");
+  std::printf("  display frames showing new tissue positions: %ld of %ld; slice views drawn in %ld of them (the "
+              "others copied the views drawn last and redrew the tool, panel and HUD)\n",
+              new_positions, displayed, scene_draws_ - scene0);
   std::printf("  tool: pulled up to %.2f lattice units; largest shortfall of a limited pull %.2f\n", double(max_requested),
               double(max_shortfall));
   Image img;

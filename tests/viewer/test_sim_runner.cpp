@@ -282,6 +282,6 @@ TEST(ViewerSimRunner, LimitedPullTextNamesBothOffsetsInLatticeUnitsAndMillimetre
   const std::string t = limited_pull_text({0, -3.0f, 0}, {0, -8.0f, 0}, {0.5, 2.0, 1.0});
   EXPECT_NE(t.find("pull limited"), std::string::npos) << t;
   EXPECT_NE(t.find("3.00 of the requested 8.00 lattice units"), std::string::npos) << t;
-  EXPECT_NE(t.find("(6.00 of 16.00 mm; 5.00 lattice units short)"), std::string::npos) << t;
+  EXPECT_NE(t.find("(6.00 of 16.00 mm), 5.00 lattice units (10.00 mm) short"), std::string::npos) << t;
   EXPECT_NE(t.find("achieved offset (0.00, -3.00, 0.00), requested (0.00, -8.00, 0.00)"), std::string::npos) << t;
 }

@@ -42,6 +42,7 @@ run near
 grep -q "pull limited: the tool moved [0-9.]* of the requested 12.00 lattice units" "$OUT/far.log" ||
   fail "the message does not name the achieved and the requested offset"
 grep -q "requested (0.00, -12.00, 0.00)" "$OUT/far.log" || fail "the message does not give the requested offset"
+grep -q "lattice units ([0-9.]* mm) short" "$OUT/far.log" || fail "the message does not say by how much in mm"
 grep -q "pull limited" "$OUT/near.log" && fail "a feasible pull was reported as limited"
 
 # The report: limited, achieved short of the request but moved.
