@@ -324,11 +324,12 @@ void Viewer::draw(bool capture, Image* out) {
   glfwGetFramebufferSize(win_, &fbw, &fbh);
   glfwGetWindowSize(win_, &ww, &wh);
   update_meshes();
-  draw_slice_views(fbw, fbh, ww, wh);
+  const bool drawable = fbw > 0 && fbh > 0;  // not while the window is minimised
+  if (drawable) draw_slice_views(fbw, fbh, ww, wh);
   const double t_views = glfwGetTime();
   // The frame: the slice views as drawn last, the panel, tool and HUD on top.
   if (capture) capture_->bind(fbw, fbh);
-  scene_->blit_to(capture ? capture_->id() : 0);
+  if (drawable) scene_->blit_to(capture ? capture_->id() : 0);
   glViewport(0, 0, fbw, fbh);
   ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
   if (capture) {

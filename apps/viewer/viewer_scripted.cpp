@@ -159,11 +159,14 @@ int Viewer::run_bench() {
     if (!sim_error_.empty()) throw Error("simulation failed: " + sim_error_);
   }
   const double elapsed = glfwGetTime() - t0;
-  bench_draws_.resize(frame_ms.size());  // the drag's frames, not those drawn while settling
+  // The figures cover the drag only, not the frames drawn (or stepped) while settling below.
+  collect_samples_ = false;
+  bench_draws_.resize(frame_ms.size());
+  const long displayed = display_count_ - display0;
+  const long scene_draws = scene_draws_ - scene0;
   runner_->release();
   runner_->set_running(false);
   settle();
-  collect_samples_ = false;
   // Display frames per whole second of the run: the slowest one.
   long slowest = -1;
   for (int s = 0; s + 1 <= static_cast<int>(elapsed); ++s) {
@@ -175,7 +178,6 @@ int Viewer::run_bench() {
     total.push_back(s.total);
     wall.push_back(s.wall);
   }
-  const long displayed = display_count_ - display0;
   const auto sims = static_cast<long>(bench_samples_.size());
   std::printf("hpcm-viewer: --bench-drag %.1f s on %s (%lld elements, %s, %s, %s)\n", elapsed, shown_->source.c_str(),
               static_cast<long long>(shown_->model->size()), damping_mode_name(shown_->params.dynamics.mode),
@@ -202,7 +204,7 @@ int Viewer::run_bench() {
               gl_renderer ? gl_renderer : "unknown");
   std::printf("  display frames showing new tissue positions: %ld of %ld; slice views drawn in %ld of them (the "
               "others copied the views drawn last and redrew the tool, panel and HUD)\n",
-              new_positions, displayed, scene_draws_ - scene0);
+              new_positions, displayed, scene_draws);
   std::printf("  tool: pulled up to %.2f lattice units; largest shortfall of a limited pull %.2f\n", double(max_requested),
               double(max_shortfall));
   Image img;
