@@ -22,6 +22,7 @@ struct ColourSettings {
   float overlay_max = 1.0f;      ///< value mapped to the top of the colour map (> 0)
   float overlay_opacity = 0.85f;  ///< [0, 1]
   bool overlay_air = false;      ///< also colour air elements (they move with the lattice)
+  bool operator==(const ColourSettings&) const = default;
 };
 
 /// RGBA8 packed as 0xAABBGGRR (little-endian byte order R, G, B, A).

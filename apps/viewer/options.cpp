@@ -41,14 +41,27 @@ int parse_options(int argc, char** argv, Options& o) {
   app.add_option("--seed", seed, "Phantom noise seed, [0, 2^64-1]");
   app.add_option("--noise", o.noise_hu, "Phantom noise standard deviation in HU, [0, 200]")->check(CLI::Range(0.0, 200.0));
   app.add_option("--params,-p", o.params, "TOML parameter file (see hpcm params --defaults)");
-  app.add_option("--scenario", o.scenario, "Scenario: TOML file, 'paper' (SPEC 7 paper protocol) or 'none'");
+  app.add_option("--scenario", o.scenario, "Scenario: TOML file, 'paper' (the paper's protocol: pull the skin 6 cells anterior over 20 frames, hold 10, release, 120 frames) or 'none'");
   app.add_option("--backend", o.backend, "cpu or cuda");
   app.add_option("--mode", o.mode, "Damping mode override: none|simple|viscoelastic (or A|B|C)");
   app.add_option("--radius", o.radius, "Grab radius override in lattice units, (0, 64]")->check(CLI::Range(0.0, 64.0));
   app.add_option("--frames,-n", o.frames, "Frames to play (default: the scenario's length)")->check(CLI::Range(0, 1000000));
+  app.add_option("--sim-rate", o.sim_rate,
+                 "Simulation frames per second, [0, 1000]; 0 (default) steps frames as fast as it can")
+      ->check(CLI::Range(0.0, 1000.0));
+  app.add_option("--max-fps", o.max_fps, "Display frames per second at most, [0, 1000]; 0 = no limit (default 60)")
+      ->check(CLI::Range(0, 1000));
   app.add_option("--screenshot,-o", o.screenshot, "Write a PNG of the window after the last frame and exit");
   app.add_option("--record", o.record, "Write one PNG per frame into this directory and exit");
   app.add_option("--report", o.report, "Write the view geometry (pixel of the grab point per view) to this text file");
+  auto* bench = app.add_option("--bench-drag", o.bench_drag,
+                 "Benchmark: drag the grab tool for this many seconds (simulation free-running), print display "
+                 "and simulation frame rates and exit, (0, 3600]")
+      ->check(CLI::Range(0.001, 3600.0));
+  auto* stall = app.add_option("--stall-frame", o.stall_frame,
+                               "Test aid (scripted runs): hold simulation frame K until the display has drawn 30 "
+                               "more frames, and report it; shows that the display does not wait for the simulation")
+      ->check(CLI::Range(1, 1000000));
   app.add_option("--size", size, "Window size WxH in pixels (default 1280x800)");
   app.add_option("--layout", o.layout, "all | axial | coronal | sagittal")
       ->check(CLI::IsMember({"all", "axial", "coronal", "sagittal"}));
@@ -67,6 +80,11 @@ int parse_options(int argc, char** argv, Options& o) {
   app.add_flag("--paused", o.paused, "Start paused (interactive use)");
   try {
     app.parse(argc, argv);
+    if (o.bench() && (!o.record.empty() || !o.scenario.empty() || o.frames >= 0))
+      throw CLI::ValidationError("--bench-drag", "drags its own tool: it cannot be combined with --record, --scenario or --frames");
+    if (stall->count() > 0 && !o.scripted())
+      throw CLI::ValidationError("--stall-frame", "needs a scripted run (--screenshot, --record or --bench-drag)");
+    (void)bench;
   } catch (const CLI::ParseError& e) {
     const int rc = app.exit(e);
     return rc;

@@ -23,12 +23,16 @@ struct Options {
   std::string mode;                  ///< damping override: none|simple|viscoelastic|A|B|C
   float radius = 0;                  ///< grab radius override (> 0), 0 = from params
   int frames = -1;                   ///< frames to play (-1: scenario length)
+  double sim_rate = 0;               ///< simulation frames per second, 0 = as fast as it can
   // scripted output
   std::string screenshot;            ///< PNG written after the last frame, then exit
   std::string record;                ///< directory: one PNG per frame, then exit
   std::string report;                ///< text file with view geometry (for tests and figures)
+  double bench_drag = 0;             ///< seconds of scripted dragging, measuring both rates (0: off)
+  int stall_frame = 0;               ///< test aid: hold this simulation frame until the display drew 30 frames
   // display
   int width = 1280, height = 800;
+  int max_fps = 60;                  ///< display frames per second at most, 0 = no limit
   std::string layout = "all";        ///< all|axial|coronal|sagittal
   std::string colour = "hu";         ///< hu|tissue
   std::string overlay = "none";      ///< none|speed|displacement
@@ -40,14 +44,14 @@ struct Options {
   bool hide_tool = false;            ///< do not draw the grab tool (figures, tests)
   bool paused = false;
 
-  bool scripted() const { return !screenshot.empty() || !record.empty(); }
+  bool bench() const { return bench_drag > 0; }
+  bool scripted() const { return !screenshot.empty() || !record.empty() || bench(); }
 };
 
 /// Parses the command line. Returns -1 to continue, or the exit code (0 after --help,
 /// non-zero after a usage error, with the message already printed).
 int parse_options(int argc, char** argv, Options& o);
 
-/// "NX,NY,NZ" -> Int3; throws hpcm::Error naming `what` unless three integers.
 /// "A,B,C" -> Int3, each an exact integer in [lo, hi]; throws hpcm::Error naming `what`.
 Int3 parse_int3(const std::string& s, const std::string& what, int lo = -2147483647 - 1, int hi = 2147483647);
 

@@ -90,7 +90,7 @@ void SliceRenderer::init() {
   glBindBuffer(GL_ARRAY_BUFFER, 0);
 }
 
-void SliceRenderer::upload(int slot, int nu, int nv, const std::vector<Vec2f>& verts, const std::vector<Rgba>& cols) {
+void SliceRenderer::upload_positions(int slot, int nu, int nv, const std::vector<Vec2f>& verts) {
   Mesh& m = mesh_.at(static_cast<std::size_t>(slot));
   glBindVertexArray(m.vao);
   if (m.nu != nu || m.nv != nv) {
@@ -109,6 +109,13 @@ void SliceRenderer::upload(int slot, int nu, int nv, const std::vector<Vec2f>& v
   }
   glBindBuffer(GL_ARRAY_BUFFER, m.vbo_pos);
   glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(verts.size() * sizeof(Vec2f)), verts.data(), GL_STREAM_DRAW);
+  glBindBuffer(GL_ARRAY_BUFFER, 0);
+  glBindVertexArray(0);
+}
+
+void SliceRenderer::upload_colours(int slot, const std::vector<Rgba>& cols) {
+  Mesh& m = mesh_.at(static_cast<std::size_t>(slot));
+  glBindVertexArray(m.vao);
   glBindBuffer(GL_ARRAY_BUFFER, m.vbo_col);
   glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(cols.size() * sizeof(Rgba)), cols.data(), GL_STREAM_DRAW);
   glBindBuffer(GL_ARRAY_BUFFER, 0);
@@ -145,12 +152,12 @@ void SliceRenderer::draw(int slot, const ViewTransform& t, float sx, float sy, f
   glDisable(GL_SCISSOR_TEST);
 }
 
-Capture::~Capture() {
+Offscreen::~Offscreen() {
   if (rb_) glDeleteRenderbuffers(1, &rb_);
   if (fbo_) glDeleteFramebuffers(1, &fbo_);
 }
 
-void Capture::begin(int w, int h) {
+void Offscreen::bind(int w, int h) {
   if (w != w_ || h != h_ || !fbo_) {
     if (rb_) glDeleteRenderbuffers(1, &rb_);
     if (fbo_) glDeleteFramebuffers(1, &fbo_);
@@ -162,8 +169,8 @@ void Capture::begin(int w, int h) {
     glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, rb_);
     if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
       glBindFramebuffer(GL_FRAMEBUFFER, 0);
-      throw Error("OpenGL: cannot create a " + std::to_string(w) + "x" + std::to_string(h) +
-                  " off-screen framebuffer for the screenshot");
+      throw Error("OpenGL: cannot create a " + std::to_string(w) + "x" + std::to_string(h) + " off-screen framebuffer for " +
+                  what_);
     }
     w_ = w;
     h_ = h;
@@ -171,7 +178,14 @@ void Capture::begin(int w, int h) {
   glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
 }
 
-Image Capture::end() {
+void Offscreen::blit_to(GLuint target) const {
+  glBindFramebuffer(GL_READ_FRAMEBUFFER, fbo_);
+  glBindFramebuffer(GL_DRAW_FRAMEBUFFER, target);
+  glBlitFramebuffer(0, 0, w_, h_, 0, 0, w_, h_, GL_COLOR_BUFFER_BIT, GL_NEAREST);
+  glBindFramebuffer(GL_FRAMEBUFFER, target);
+}
+
+Image Offscreen::read() const {
   Image img;
   img.width = w_;
   img.height = h_;
@@ -189,9 +203,6 @@ Image Capture::end() {
       dst[3 * x + 2] = src[4 * x + 2];
     }
   }
-  glBindFramebuffer(GL_DRAW_FRAMEBUFFER, 0);
-  glBlitFramebuffer(0, 0, w_, h_, 0, 0, w_, h_, GL_COLOR_BUFFER_BIT, GL_NEAREST);
-  glBindFramebuffer(GL_FRAMEBUFFER, 0);
   return img;
 }
 

@@ -1,5 +1,5 @@
 #pragma once
-// OpenGL 3.3 core drawing of the slice meshes, and an off-screen framebuffer for screenshots.
+// OpenGL 3.3 core drawing of the slice meshes, and off-screen framebuffers (cached views, screenshots).
 #include <array>
 #include <vector>
 
@@ -19,8 +19,11 @@ class SliceRenderer {
 
   /// Compiles the shaders and creates the buffers; throws hpcm::Error with the GL log.
   void init();
-  /// Uploads the vertices and colours of mesh `slot` (a Nu x Nv vertex grid).
-  void upload(int slot, int nu, int nv, const std::vector<Vec2f>& verts, const std::vector<Rgba>& cols);
+  /// Uploads the vertex positions of mesh `slot` (a Nu x Nv vertex grid; the index buffers are
+  /// rebuilt only when the grid size changes).
+  void upload_positions(int slot, int nu, int nv, const std::vector<Vec2f>& verts);
+  /// Uploads the vertex colours of mesh `slot` (one per vertex, after upload_positions).
+  void upload_colours(int slot, const std::vector<Rgba>& cols);
   /// Draws mesh `slot` into view rectangle `t` (window pixels); `fb_scale` = framebuffer
   /// pixels per window pixel; `win_h` window height. Optional wire-frame on top.
   void draw(int slot, const ViewTransform& t, float fb_scale_x, float fb_scale_y, float win_h, bool wire);
@@ -36,20 +39,25 @@ class SliceRenderer {
   GLint loc_xform_ = -1, loc_line_ = -1;
 };
 
-/// Off-screen RGBA8 framebuffer: render into it, read it back, show it on the window.
-class Capture {
+/// Off-screen RGBA8 framebuffer: the slice views are drawn into one and kept until they change
+/// (each display frame copies it to the window), and screenshots are drawn into another.
+class Offscreen {
  public:
-  Capture() = default;
-  Capture(const Capture&) = delete;
-  Capture& operator=(const Capture&) = delete;
-  ~Capture();
-  /// (Re)creates the framebuffer at w x h and binds it for drawing.
-  void begin(int w, int h);
-  /// Reads the framebuffer (top row first), copies it to the window's back buffer and
-  /// binds the default framebuffer again.
-  Image end();
+  explicit Offscreen(const char* what) : what_(what) {}
+  Offscreen(const Offscreen&) = delete;
+  Offscreen& operator=(const Offscreen&) = delete;
+  ~Offscreen();
+  /// (Re)creates the framebuffer at w x h if its size changed, and binds it for drawing.
+  void bind(int w, int h);
+  /// Copies it, pixel for pixel, into framebuffer `target` (0: the window's back buffer) and
+  /// leaves `target` bound.
+  void blit_to(GLuint target) const;
+  /// Its pixels, top row first.
+  Image read() const;
+  GLuint id() const { return fbo_; }
 
  private:
+  const char* what_;  // for the error message
   GLuint fbo_ = 0, rb_ = 0;
   int w_ = 0, h_ = 0;
 };

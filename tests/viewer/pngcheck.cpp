@@ -5,6 +5,9 @@
 //                                         around pixel (CX, CY), clipped to the image
 //   pngcheck ring IMG CX CY R             print the fraction of bright pixels (all channels
 //                                         >= 170) on the circle of radius R around (CX, CY)
+//   pngcheck count IMG CX CY R RR GG BB T  print how many pixels in the square of half-size R
+//                                         around (CX, CY) have every channel within T of
+//                                         (RR, GG, BB)
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -18,7 +21,7 @@ using hpcm::viewer::read_png;
 namespace {
 
 int usage() {
-  std::fprintf(stderr, "usage: pngcheck size IMG W H | diff A B CX CY R | ring IMG CX CY R\n");
+  std::fprintf(stderr, "usage: pngcheck size IMG W H | diff A B CX CY R | ring IMG CX CY R | count IMG CX CY R RR GG BB T\n");
   return 2;
 }
 
@@ -78,6 +81,23 @@ int main(int argc, char** argv) {
         bright += hit;
       }
       std::printf("%.4f\n", n > 0 ? double(bright) / n : 0.0);
+      return 0;
+    }
+    if (cmd == "count" && argc == 10) {
+      const Image img = read_png(argv[2]);
+      const double cx = std::atof(argv[3]), cy = std::atof(argv[4]), r = std::atof(argv[5]);
+      const int want[3] = {std::atoi(argv[6]), std::atoi(argv[7]), std::atoi(argv[8])}, tol = std::atoi(argv[9]);
+      const int x0 = std::max(0, int(std::floor(cx - r))), x1 = std::min(img.width, int(std::ceil(cx + r)));
+      const int y0 = std::max(0, int(std::floor(cy - r))), y1 = std::min(img.height, int(std::ceil(cy + r)));
+      long n = 0;
+      for (int y = y0; y < y1; ++y)
+        for (int x = x0; x < x1; ++x) {
+          const std::uint8_t* p = &img.rgb[(static_cast<std::size_t>(y) * img.width + x) * 3];
+          bool near = true;
+          for (int c = 0; c < 3; ++c) near &= std::abs(int(p[c]) - want[c]) <= tol;
+          n += near;
+        }
+      std::printf("%ld\n", n);
       return 0;
     }
   } catch (const std::exception& e) {
