@@ -36,14 +36,21 @@ void layer_row(Storage& st, const dynamics::LayerConstants& k, const LayerRow& r
   const V v_max = splat<V>(k.v_max), beta = splat<V>(k.beta);
   V lane;
   for (int l = 0; l < N; ++l) lane[l] = static_cast<float>(l);
+  // Brick columns are col_width (a power of two) row elements wide: shifts, not divisions.
+  int col_shift = 0;
+  while ((1 << col_shift) < r.col_width) ++col_shift;
+  auto column = [&](int jl) { return (jl - r.col_base) >> col_shift; };
   for (int j = r.j0; j < r.j1; j += N) {
     const Index e = k0 + j;
     const int count = std::min(N, r.j1 - j);
     const M in_row = lane < splat<V>(static_cast<float>(count));
     const M t = load_bytes<V>(st.tissue.data() + e);
     M fixed = (load_bytes<V>(st.flags.data() + e) & static_cast<int>(kFixed)) != 0;
-    for (int l = 0; l < count; ++l)  // a sleeping brick's elements get no dynamics this frame
-      if (r.col_asleep[(j + l - r.col_base) / r.col_width]) fixed[l] = -1;
+    bool any_asleep = false;  // a sleeping brick's elements get no dynamics this frame
+    for (int c = column(j); c <= column(j + count - 1); ++c) any_asleep |= r.col_asleep[c] != 0;
+    if (any_asleep)
+      for (int l = 0; l < count; ++l)
+        if (r.col_asleep[column(j + l)]) fixed[l] = -1;
     V post[3], pre[3], v[3];
     for (int a = 0; a < 3; ++a) {
       post[a] = load<V>(st.p[a].data() + e);
@@ -73,11 +80,11 @@ void layer_row(Storage& st, const dynamics::LayerConstants& k, const LayerRow& r
     const M fast = speed > v_max;
     const V f = v_max / speed;
     for (int a = 0; a < 3; ++a) nv[a] = fast ? nv[a] * f : nv[a];
-    for (int l = 0; l < count; ++l)
-      if (dynamic[l]) {
-        float& cs = r.col_speed[(j + l - r.col_base) / r.col_width];
-        cs = cs > speed[l] ? cs : speed[l];
-      }
+    for (unsigned bits = lane_bits<V>(dynamic & in_row); bits; bits &= bits - 1) {
+      const int l = __builtin_ctz(bits);
+      float& cs = r.col_speed[column(j + l)];
+      cs = cs > speed[l] ? cs : speed[l];
+    }
     // 6. position update.
     const V g = beta * by_tissue<V>(t, k.rho);
     V out[3];
@@ -105,12 +112,8 @@ void layer_row(Storage& st, const dynamics::LayerConstants& k, const LayerRow& r
     const M has_v = (nv[0] != zero) | (nv[1] != zero) | (nv[2] != zero);
     const M changed = (out[0] != post[0]) | (out[1] != post[1]) | (out[2] != post[2]);
     const unsigned with_v = lane_bits<V>(has_v & in_row), moved = lane_bits<V>(changed & in_row);
-    if (with_v | moved)
-      for (int l = 0; l < count; ++l) {
-        const int col = (j + l - r.col_base) / r.col_width;
-        if (with_v >> l & 1u) r.col_velocity[col] = 1;
-        if (moved >> l & 1u) r.col_moved[col] = 1;
-      }
+    for (unsigned bits = with_v; bits; bits &= bits - 1) r.col_velocity[column(j + __builtin_ctz(bits))] = 1;
+    for (unsigned bits = moved; bits; bits &= bits - 1) r.col_moved[column(j + __builtin_ctz(bits))] = 1;
     if (speeds) {
       const V sp = norm3<V>(out[0] - pre[0], out[1] - pre[1], out[2] - pre[2]);
       for (int l = 0; l < count; ++l) {
