@@ -28,6 +28,7 @@ struct BenchOptions {
   int warmup = 5;
   int probe_reps = 20;
   bool speeds = false;
+  bool awake_reference = false;
 };
 
 struct Summary {
@@ -52,6 +53,12 @@ struct ConditionTiming {
   std::string label;
   std::vector<FrameReport> frames;
   Summary chainmail, inertia, snapshot, total, total_deform, total_idle;
+  // With --awake-reference: the same protocol with every brick awake (solver.sleep = false),
+  // stepped alternately with the timed run, and the largest per-element position difference
+  // between the two over all frames.
+  bool has_awake = false;
+  Summary awake_total;
+  float max_awake_diff = 0;
 };
 
 std::string cpu_model() {
@@ -87,10 +94,28 @@ ConditionTiming run_condition(const Model& model, Params p, DampingMode mode, Ba
   so.speeds = o.speeds;
   so.link_violation = false;
   ConditionTiming c{mode, condition_label(mode), {}, {}, {}, {}, {}, {}, {}};
-  std::vector<double> cm, in, sn, tot, tot_d, tot_i;
+  std::vector<double> cm, in, sn, tot, tot_d, tot_i, awake_tot;
   const bool progress = want_progress();
+  std::unique_ptr<Simulation> awake;
+  std::unique_ptr<ScenarioPlayer> awake_player;
+  if (o.awake_reference && p.solver.sleep) {
+    Params pa = p;
+    pa.solver.sleep = false;
+    awake = std::make_unique<Simulation>(model, pa, bk);
+    awake_player = std::make_unique<ScenarioPlayer>(sc, *awake);
+    c.has_awake = true;
+  }
   for (int f = 0; f < o.frames; ++f) {
+    if (awake) {  // alternate: the reference frame first, under the same machine load
+      const FrameReport ra = awake_player->done() ? awake->step(so) : awake_player->step(so);
+      awake_tot.push_back(ra.sim_total_ms);
+    }
     const FrameReport r = player.done() ? sim->step(so) : player.step(so);
+    if (awake) {  // untimed: both states downloaded and compared
+      const std::vector<Vec3>& xs = sim->state().pos;
+      const std::vector<Vec3>& xa = awake->state().pos;
+      for (std::size_t i = 0; i < xs.size(); ++i) c.max_awake_diff = std::max(c.max_awake_diff, norm(xs[i] - xa[i]));
+    }
     c.frames.push_back(r);
     cm.push_back(r.chainmail_ms);
     in.push_back(r.inertia_ms);
@@ -105,6 +130,7 @@ ConditionTiming run_condition(const Model& model, Params p, DampingMode mode, Ba
   c.total = summarise(tot);
   c.total_deform = summarise(tot_d);
   c.total_idle = summarise(tot_i);
+  c.awake_total = summarise(awake_tot);
   if (keep) *keep = std::move(sim);
   return c;
 }
@@ -126,6 +152,9 @@ void register_bench(CLI::App& app) {
   add_int_option(cmd, "--warmup", o->warmup, 0, 10'000, "Untimed warm-up frames before the timed runs");
   add_int_option(cmd, "--probe-reps", o->probe_reps, 1, 10'000, "Repetitions of the GPU bandwidth probe");
   cmd->add_flag("--speeds", o->speeds, "Include the per-tissue speed reductions in the timed frames");
+  cmd->add_flag("--awake-reference", o->awake_reference,
+                "Also run every condition with every brick awake (no sleeping), alternating frame by frame with the "
+                "timed run: report its SimTotal, the ratio, and the largest position difference between the two");
   cmd->add_option("--out", o->out, "Output folder for bench.csv, bench_frames.csv, bench.json")->capture_default_str();
   cmd->callback([o] {
     const BackendKind bk = parse_backend(o->backend, "--backend");
@@ -185,6 +214,12 @@ void register_bench(CLI::App& app) {
                   c.total_deform.median,
                   static_cast<std::size_t>(std::count_if(c.frames.begin(), c.frames.end(), [](const FrameReport& r) { return r.deform; })),
                   c.total_idle.median);
+    for (const auto& c : res)
+      if (c.has_awake)
+        std::printf("  %s: all-awake reference SimTotal median %.4f ms (sleeping: %.4f ms, ratio awake/sleeping %.3f); "
+                    "largest position difference over all frames %.3g lattice units\n",
+                    c.label.c_str(), c.awake_total.median, c.total.median,
+                    c.total.median > 0 ? c.awake_total.median / c.total.median : 0.0, c.max_awake_diff);
     if (probe.available) {
       const double ratio = probe.copy_gbs() > 0 ? probe.layer_gbs() / probe.copy_gbs() : 0;
       std::printf("Velocity layer bandwidth: %.1f GB/s (dense fused pass, %.4f ms, %.0f B/element) vs device-to-device copy "
@@ -258,6 +293,9 @@ void register_bench(CLI::App& app) {
                        {"sim_total_deform", summary_json(c.total_deform)},
                        {"sim_total_idle", summary_json(c.total_idle)},
                        {"elements_per_s", eps}});
+      if (c.has_awake)
+        conds.back()["awake_reference"] = {{"sim_total", summary_json(c.awake_total)},
+                                           {"max_position_difference", c.max_awake_diff}};
     }
     js["conditions"] = conds;
     if (probe.available) {
