@@ -73,26 +73,6 @@ std::string scenario_label(const std::string& path) {
   return path.empty() || path == "paper" ? std::string("the paper protocol") : "scenario " + path;
 }
 
-ScenarioPlace scenario_place(const Scenario& sc, int frame) {
-  ScenarioPlace p;
-  for (std::size_t k = 0; k < sc.grabs.size() && frame >= 0; ++k) {
-    const GrabAction& g = sc.grabs[k];
-    if (frame < g.start || frame > g.start + g.release) continue;
-    p.grab = static_cast<int>(k);
-    p.text = "grab[" + std::to_string(k) + "]";
-    // Keyframe segment that frame lies in (offsets are reached at the end of relative frame r).
-    const int t = frame - g.start + 1;
-    for (std::size_t j = 0; j < g.path.size(); ++j)
-      if (t <= g.path[j].frame || j + 1 == g.path.size()) {
-        p.segment = static_cast<int>(j);
-        p.text += j == 0 ? ", keyframes[0]" : ", keyframes[" + std::to_string(j - 1) + "] to [" + std::to_string(j) + "]";
-        break;
-      }
-    break;
-  }
-  return p;
-}
-
 void rethrow_in_scenario(const Error& e, const Scenario& sc, const std::string& label, int frame) {
   std::string where = label;
   const ScenarioPlace p = scenario_place(sc, frame);
@@ -176,7 +156,7 @@ void register_run(CLI::App& app) {
     so.link_violation = !o->no_link_check;
     so.cell_jacobian = !o->no_link_check;
     const bool progress = want_progress();
-    PullLimitNotes pull_notes(sc, sim.model(), sc_label);
+    LimitedPullTracker limited(sc);
     float worst = 0;
     try {
       for (int f = 0; f < frames; ++f) {
@@ -188,11 +168,12 @@ void register_run(CLI::App& app) {
         }
         worst = std::max(worst, r.max_link_violation);
         csv.put(frames_csv_row(r));
-        pull_notes.after_frame(r, sim.tool_offset(), sim.requested_offset());
+        if (const auto ended = limited.after_frame(r, sim.tool_offset(), sim.requested_offset()))
+          print_limited_pull(*ended, sim.model(), sc_label);
         exporter.after_frame(f, frames);
         if (progress) progress_bar("run", f + 1, frames);
       }
-      pull_notes.finish();
+      if (const auto ended = limited.finish()) print_limited_pull(*ended, sim.model(), sc_label);
       csv.close();
       exporter.finish(frames);
     } catch (const Error& e) {

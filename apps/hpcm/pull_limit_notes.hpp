@@ -1,37 +1,22 @@
 #pragma once
-// Tells the user, once per stretch of frames, that the tool asked for more than the tissue
-// allows: the solver then limits the tool (the achieved offset is smaller than the requested
-// one, no link is overstretched). One note per grab and keyframe segment, not one per frame.
-#include <optional>
+// How `hpcm run` and `hpcm experiment` tell the user that the tool asked for more than the
+// tissue allows: once per stretch of limited frames in one grab and keyframe segment
+// (LimitedPullTracker), never once per frame.
+#include <nlohmann/json.hpp>
 #include <string>
 
-#include "run_options.hpp"
+#include "hpcm/hpcm.hpp"
 
 namespace hpcm::cli {
 
-class PullLimitNotes {
- public:
-  /// `label` names the scenario in messages ("the paper protocol", "scenario FILE").
-  PullLimitNotes(const Scenario& sc, const Model& m, std::string label);
-  /// After each frame: its report and the tool offsets (lattice units) used in it.
-  void after_frame(const FrameReport& r, Vec3 achieved, Vec3 requested);
-  /// At the end of the run: reports a stretch still open.
-  void finish();
-  int notes_printed() const { return printed_; }
-
- private:
-  struct Stretch {
-    ScenarioPlace place;
-    int first = 0, last = 0;
-    Vec3 achieved{}, requested{};  ///< at the frame of the stretch that asked for the most
-  };
-  void print(const Stretch& s);
-  double millimetres(Vec3 v) const;  ///< length of a lattice-unit vector in mm
-  const Scenario& scenario_;
-  const Model& model_;
-  std::string label_;
-  std::optional<Stretch> open_;
-  int printed_ = 0;
-};
+/// Length in millimetres of an offset in lattice units (the lattice's spacing and direction).
+double offset_mm(const Model& m, Vec3 offset);
+/// "the pull was limited in frames 16-29 (LABEL, grab[0], keyframes[0] to [1]): the tool
+/// reached 4.98 of the requested 6 lattice units (41.5 of 50 mm); ..."
+std::string limited_pull_text(const LimitedPull& p, const Model& m, const std::string& label);
+/// Prints limited_pull_text as a note on stderr.
+void print_limited_pull(const LimitedPull& p, const Model& m, const std::string& label);
+/// For summary.json: frames, grab, segment, offsets in lattice units and mm.
+nlohmann::json limited_pull_json(const LimitedPull& p, const Model& m);
 
 }  // namespace hpcm::cli

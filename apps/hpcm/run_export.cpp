@@ -23,8 +23,10 @@ void add_export_options(CLI::App* cmd, RunOptions& o) {
 #if defined(HPCM_WITH_ITK)
 namespace {
 
+nlohmann::json int3_json(Int3 v) { return {v.x, v.y, v.z}; }
+
 nlohmann::json grid_json(const io::Grid& g) {
-  return {{"shape", {g.dims.x, g.dims.y, g.dims.z}},
+  return {{"shape", int3_json(g.dims)},
           {"spacing", g.spacing},
           {"origin", g.origin},
           {"direction", g.direction}};
@@ -56,11 +58,13 @@ nlohmann::json export_json(const io::Input& in, const io::ExportFiles& f, const 
       {"cells_checked", ig.field.cells},
       {"folded_cells", ig.field.folded_cells},
       {"min_det", ig.field.cells > 0 ? nlohmann::json(ig.field.min_det) : nlohmann::json(nullptr)},
+      {"min_det_cell", ig.field.cells > 0 ? nlohmann::json(int3_json(ig.field.min_det_cell)) : nlohmann::json(nullptr)},
       {"fold_free", ig.fold_free()}};
   j["deformed_inverse_mapping"] = {{"file", std::filesystem::path(f.deformed).filename().string()},
                                    {"voxels", ig.deformed.voxels},
                                    {"unconverged_voxels", ig.deformed.unconverged},
                                    {"max_residual_mm", ig.deformed.max_residual_mm},
+                                   {"worst_voxel", int3_json(ig.deformed.worst_voxel)},
                                    {"tolerance_mm", ig.deformed.tolerance_mm},
                                    {"fixed_point_iterations", ig.deformed.max_iterations},
                                    {"newton_iterations", ig.deformed.newton_iterations},

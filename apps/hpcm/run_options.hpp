@@ -56,14 +56,6 @@ std::string frames_csv_row(const FrameReport& r);
 Params resolve_params(const RunOptions& o);
 Scenario resolve_scenario(const RunOptions& o);
 
-/// Where a scenario frame lies: the grab held then and its keyframe segment.
-struct ScenarioPlace {
-  int grab = -1;     ///< index into Scenario::grabs; -1: no grab at that frame
-  int segment = -1;  ///< keyframe j the offset moves towards (held after the last); -1: none
-  std::string text;  ///< "grab[0], keyframes[0] to [1]"; empty without a grab
-};
-ScenarioPlace scenario_place(const Scenario& sc, int frame);
-
 /// "scenario FILE" / "the paper protocol": how messages name the scenario of `path`.
 std::string scenario_label(const std::string& path);
 /// Rethrows an error raised while playing scenario frame `frame` (-1: while preparing it),

@@ -157,6 +157,7 @@ void write_label_map(const Input& in, const Model& m, const std::string& path);
 /// any corner determinant <= 0 is folded (the map turns it inside out there).
 struct FieldJacobianStats {
   double min_det = 1;      ///< smallest corner determinant (meaningless when cells == 0)
+  Int3 min_det_cell{};     ///< where it is: the cell's first voxel (lowest indices), grid's own order
   Index folded_cells = 0;  ///< cells with a corner determinant <= 0
   Index cells = 0;         ///< cells checked: (nx-1)(ny-1)(nz-1)
 };
@@ -169,6 +170,7 @@ struct InverseMappingStats {
   Index voxels = 0;             ///< output voxels mapped
   Index unconverged = 0;        ///< voxels whose residual exceeds tolerance_mm
   double max_residual_mm = 0;   ///< largest residual over all voxels
+  Int3 worst_voxel{};           ///< where it is: voxel index in the output grid's own order
   double tolerance_mm = 0;      ///< the tolerance applied
   int max_iterations = 0;       ///< fixed-point iterations allowed per voxel
   int newton_iterations = 0;    ///< Newton iterations allowed after them where the residual is still too large

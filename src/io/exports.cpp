@@ -53,9 +53,12 @@ FieldJacobianStats displacement_jacobian(const Grid& g, const std::vector<float>
   if (n[0] < 2 || n[1] < 2 || n[2] < 2) return st;
   st.cells = static_cast<Index>(n[0] - 1) * (n[1] - 1) * (n[2] - 1);
   const std::int64_t stride[3] = {1, n[0], static_cast<std::int64_t>(n[0]) * n[1]};
-  double min_det = std::numeric_limits<double>::infinity();
-  Index folded = 0;
-#pragma omp parallel for schedule(static) reduction(min : min_det) reduction(+ : folded)
+  // Per plane of cells, combined in plane order afterwards (independent of the thread count).
+  const std::size_t planes = static_cast<std::size_t>(n[2] - 1);
+  std::vector<double> plane_min(planes, std::numeric_limits<double>::infinity());
+  std::vector<Int3> plane_at(planes);
+  std::vector<Index> plane_folded(planes, 0);
+#pragma omp parallel for schedule(static)
   for (int z = 0; z < n[2] - 1; ++z)
     for (int y = 0; y < n[1] - 1; ++y)
       for (int x = 0; x < n[0] - 1; ++x) {
@@ -72,13 +75,22 @@ FieldJacobianStats displacement_jacobian(const Grid& g, const std::vector<float>
             for (int r = 0; r < 3; ++r) e[r * 3 + a] = A[r * 3 + a] + double(u[3 * hi + r]) - double(u[3 * lo + r]);
           }
           const double det = detail::mat_det(e) / det_a;
-          min_det = std::min(min_det, det);
+          if (det < plane_min[z]) {
+            plane_min[z] = det;
+            plane_at[z] = {x, y, z};
+          }
           cell_folded = cell_folded || !(det > 0);
         }
-        folded += cell_folded ? 1 : 0;
+        plane_folded[z] += cell_folded ? 1 : 0;
       }
-  st.min_det = min_det;
-  st.folded_cells = folded;
+  st.min_det = std::numeric_limits<double>::infinity();
+  for (std::size_t z = 0; z < planes; ++z) {
+    st.folded_cells += plane_folded[z];
+    if (plane_min[z] < st.min_det) {
+      st.min_det = plane_min[z];
+      st.min_det_cell = plane_at[z];
+    }
+  }
   return st;
 }
 
@@ -91,17 +103,21 @@ std::vector<std::string> export_problems(const ExportFiles& f) {
     std::string files = name(f.displacement_nifti);
     if (!f.displacement_nrrd.empty()) files += " and " + name(f.displacement_nrrd);
     std::snprintf(buf, sizeof buf,
-                  "the displacement field folds: %lld of %lld cells have a Jacobian determinant <= 0 (smallest %.6g)",
-                  static_cast<long long>(j.folded_cells), static_cast<long long>(j.cells), j.min_det);
+                  "the displacement field folds: %lld of %lld cells have a Jacobian determinant <= 0 (smallest %.6g, "
+                  "in the cell at voxel %d,%d,%d)",
+                  static_cast<long long>(j.folded_cells), static_cast<long long>(j.cells), j.min_det, j.min_det_cell.x,
+                  j.min_det_cell.y, j.min_det_cell.z);
     out.push_back(files + ": " + buf);
   }
   const InverseMappingStats& d = f.integrity.deformed;
   if (d.unconverged > 0) {
     std::snprintf(buf, sizeof buf,
-                  "the inverse mapping did not converge for %lld of %lld voxels (largest residual %.3g mm, tolerance "
-                  "%.3g mm after %d fixed-point and %d Newton iterations): their HU may come from the wrong place",
+                  "the inverse mapping did not converge for %lld of %lld voxels (largest residual %.3g mm at voxel "
+                  "%d,%d,%d; tolerance %.3g mm after %d fixed-point and %d Newton iterations): their HU may come "
+                  "from the wrong place",
                   static_cast<long long>(d.unconverged), static_cast<long long>(d.voxels), d.max_residual_mm,
-                  d.tolerance_mm, d.max_iterations, d.newton_iterations);
+                  d.worst_voxel.x, d.worst_voxel.y, d.worst_voxel.z, d.tolerance_mm, d.max_iterations,
+                  d.newton_iterations);
     out.push_back(name(f.deformed) + ": " + buf);
   }
   return out;

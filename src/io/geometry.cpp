@@ -213,9 +213,12 @@ std::vector<float> resample_deformed(const Volume& original, const Model& m, con
     return static_cast<float>(v);
   };
   std::vector<float> out(original.size());
-  Index unconverged = 0;
-  double max_residual_mm = 0;
-#pragma omp parallel for schedule(dynamic, 1) reduction(+ : unconverged) reduction(max : max_residual_mm)
+  // Per output plane: unconverged voxels, the largest residual and where it is (combined in
+  // plane order afterwards, so the figures do not depend on the thread count).
+  std::vector<Index> plane_unconverged(static_cast<std::size_t>(O[2]), 0);
+  std::vector<double> plane_max(static_cast<std::size_t>(O[2]), -1.0);
+  std::vector<Int3> plane_worst(static_cast<std::size_t>(O[2]));
+#pragma omp parallel for schedule(dynamic, 1)
   for (int z = 0; z < O[2]; ++z) {
     for (int y = 0; y < O[1]; ++y) {
       for (int x = 0; x < O[0]; ++x) {
@@ -260,8 +263,11 @@ std::vector<float> resample_deformed(const Volume& original, const Model& m, con
             }
             if (!improved) break;
           }
-          max_residual_mm = std::max(max_residual_mm, residual);
-          if (!(residual <= kInverseMappingToleranceMm)) ++unconverged;
+          if (residual > plane_max[z]) {
+            plane_max[z] = residual;
+            plane_worst[z] = {x, y, z};
+          }
+          if (!(residual <= kInverseMappingToleranceMm)) ++plane_unconverged[z];
         }
         double q0[3];
         for (int r = 0; r < 3; ++r) q0[r] = Minv[r * 3] * X[0] + Minv[r * 3 + 1] * X[1] + Minv[r * 3 + 2] * X[2] + cinv[r];
@@ -270,9 +276,15 @@ std::vector<float> resample_deformed(const Volume& original, const Model& m, con
     }
   }
   if (stats) {
+    *stats = {};
     stats->voxels = static_cast<Index>(out.size());
-    stats->unconverged = unconverged;
-    stats->max_residual_mm = max_residual_mm;
+    for (int z = 0; z < O[2]; ++z) {
+      stats->unconverged += plane_unconverged[z];
+      if (plane_max[z] > stats->max_residual_mm) {
+        stats->max_residual_mm = plane_max[z];
+        stats->worst_voxel = plane_worst[z];
+      }
+    }
     stats->tolerance_mm = kInverseMappingToleranceMm;
     stats->max_iterations = max_iterations;
     stats->newton_iterations = newton_iterations;

@@ -71,6 +71,9 @@ def check_sidecar_against_numpy(out):
     assert jac["cells_checked"] == dets[0].size
     assert jac["folded_cells"] == folded
     assert jac["min_det"] == pytest.approx(float(dets.min()), rel=1e-6, abs=1e-9)
+    # The cell named as the smallest holds that value (equal values elsewhere may exist).
+    i, j, k = jac["min_det_cell"]
+    assert dets[:, i, j, k].min() == pytest.approx(float(dets.min()), rel=1e-6, abs=1e-9)
     return final, dets
 
 

@@ -537,6 +537,9 @@ TEST(ExportIntegrity, FoldedPositionsAreReportedAndNamed) {
   EXPECT_GT(f.integrity.field.folded_cells, 0);
   EXPECT_LE(f.integrity.field.folded_cells, 8);  // only the 8 cells around the moved element
   EXPECT_LT(f.integrity.field.min_det, 0.0);
+  const Int3 at = f.integrity.field.min_det_cell;  // one of the 8 cells that share element (5,4,4)
+  EXPECT_TRUE(at.x >= 4 && at.x <= 5 && at.y >= 3 && at.y <= 4 && at.z >= 3 && at.z <= 4)
+      << at.x << "," << at.y << "," << at.z;
   const std::vector<std::string> problems = io::export_problems(f);
   ASSERT_FALSE(problems.empty());
   EXPECT_NE(problems[0].find("displacement_folded.nii.gz and displacement_folded.nrrd: the displacement field folds"),
@@ -559,6 +562,8 @@ TEST(ExportIntegrity, UnconvergedInverseMappingIsCounted) {
   EXPECT_GT(st.unconverged, 0);
   EXPECT_GT(st.max_residual_mm, st.tolerance_mm);
   EXPECT_EQ(st.max_iterations, io::detail::kInverseMappingIterations);
+  EXPECT_TRUE(st.worst_voxel.x >= 0 && st.worst_voxel.x < 12 && st.worst_voxel.y >= 0 && st.worst_voxel.y < 10 &&
+              st.worst_voxel.z >= 0 && st.worst_voxel.z < 8);
   EXPECT_EQ(st.newton_iterations, 0);
   io::ExportFiles f;
   f.deformed = "/somewhere/deformed_final.nrrd";
@@ -567,6 +572,10 @@ TEST(ExportIntegrity, UnconvergedInverseMappingIsCounted) {
   ASSERT_EQ(problems.size(), 1u);
   EXPECT_NE(problems[0].find("deformed_final.nrrd: the inverse mapping did not converge for " +
                              std::to_string(st.unconverged) + " of " + std::to_string(v.size()) + " voxels"),
+            std::string::npos)
+      << problems[0];
+  EXPECT_NE(problems[0].find("at voxel " + std::to_string(st.worst_voxel.x) + "," + std::to_string(st.worst_voxel.y) +
+                             "," + std::to_string(st.worst_voxel.z)),
             std::string::npos)
       << problems[0];
   // With the Newton steps the export allows it converges.
