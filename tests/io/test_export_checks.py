@@ -131,3 +131,10 @@ def test_dicom_series_export_is_fold_free_and_converged(tmp_path):
     assert inv["voxels"] == 512 * 512 * 20
     assert inv["unconverged_voxels"] == 0 and inv["max_residual_mm"] <= inv["tolerance_mm"]
     print(f"DICOM f=2, 30 frames: min det {dets.min():.6g}, residual {inv['max_residual_mm']:.3g} mm")
+
+
+def test_strict_needs_export(tmp_path):
+    r = subprocess.run([HPCM, "run", "--phantom", "16,16,12", "--frames", "2", "--strict", "--out", str(tmp_path / "run")],
+                       capture_output=True, text=True)
+    assert r.returncode != 0 and "--strict needs --export" in r.stderr, r.stderr
+    assert not (tmp_path / "run").exists()
