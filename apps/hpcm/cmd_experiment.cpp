@@ -1,5 +1,6 @@
 // hpcm experiment: conditions A/B/C of the paper on identical input, the tables, the SPEC §8
 // checks, figures and a Markdown report.
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -13,6 +14,7 @@
 #include "hpcm/experiment.hpp"
 #include "memory_estimate.hpp"
 #include "output_dir.hpp"
+#include "pull_limit_notes.hpp"
 #include "run_options.hpp"
 #include "spawn.hpp"
 
@@ -59,6 +61,22 @@ std::string find_report_script() {
                                std::string("/usr/share/hpcm/hpcm_report.py")})
     if (std::filesystem::exists(p)) return p;
   return {};
+}
+
+/// Each limited stretch once, naming the conditions it occurred in (the input is the same for
+/// A, B and C, so usually all three).
+void print_limited_pulls(const ExperimentResult& r, const Model& m, const std::string& label) {
+  std::vector<std::pair<std::string, std::string>> notes;  // text, conditions
+  for (const auto& c : r.conditions)
+    for (const LimitedPull& lp : c.limited_pulls) {
+      const std::string text = limited_pull_text(lp, m, label);
+      auto it = std::find_if(notes.begin(), notes.end(), [&](const auto& n) { return n.first == text; });
+      if (it == notes.end()) notes.emplace_back(text, c.label);
+      else it->second += ", " + c.label;
+    }
+  for (const auto& [text, conditions] : notes)
+    std::fprintf(stderr, "hpcm: note: condition%s %s: %s\n", conditions.size() > 1 ? "s" : "", conditions.c_str(),
+                 text.c_str());
 }
 
 }  // namespace
@@ -169,6 +187,8 @@ void register_experiment(CLI::App& app) {
       t3 << buf;
       jc["timing_ms"] = {{"chainmail", c.chainmail_ms}, {"inertia", c.inertia_ms}, {"snapshot", c.snapshot_ms}, {"sim_total", c.sim_total_ms}};
       jc["settle_max_speed"] = c.settle_max_speed;
+      jc["limited_pulls"] = nlohmann::json::array();
+      for (const LimitedPull& lp : c.limited_pulls) jc["limited_pulls"].push_back(limited_pull_json(lp, m));
       nlohmann::json track = nlohmann::json::array();
       for (std::size_t f = 0; f < c.centre_track.size(); ++f) {
         const Vec3 d = c.centre_track[f] - c.centre_rest;
@@ -197,6 +217,7 @@ void register_experiment(CLI::App& app) {
                     "); the CSV and JSON files are in " + dir);
     }
     out.commit();
+    print_limited_pulls(r, m, sc_label);
     int held = 0;
     for (const auto& ch : r.checks) held += ch.holds;
     std::printf("experiment: %lld elements, checks %d/%zu hold; wrote %s/{curves.csv,table2.csv,table3.csv,activity.csv,summary.json%s}\n",

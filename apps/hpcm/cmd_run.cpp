@@ -6,6 +6,7 @@
 #include "hpcm/config.hpp"
 #include "memory_estimate.hpp"
 #include "output_dir.hpp"
+#include "pull_limit_notes.hpp"
 #include "run_options.hpp"
 
 namespace hpcm::cli {
@@ -74,19 +75,8 @@ std::string scenario_label(const std::string& path) {
 
 void rethrow_in_scenario(const Error& e, const Scenario& sc, const std::string& label, int frame) {
   std::string where = label;
-  for (std::size_t k = 0; k < sc.grabs.size() && frame >= 0; ++k) {
-    const GrabAction& g = sc.grabs[k];
-    if (frame < g.start || frame > g.start + g.release) continue;
-    where += ", grab[" + std::to_string(k) + "]";
-    // Keyframe segment that frame lies in (offsets are reached at the end of relative frame r).
-    const int t = frame - g.start + 1;
-    for (std::size_t j = 0; j < g.path.size(); ++j)
-      if (t <= g.path[j].frame || j + 1 == g.path.size()) {
-        where += j == 0 ? ", keyframes[0]" : ", keyframes[" + std::to_string(j - 1) + "] to [" + std::to_string(j) + "]";
-        break;
-      }
-    break;
-  }
+  const ScenarioPlace p = scenario_place(sc, frame);
+  if (!p.text.empty()) where += ", " + p.text;
   if (frame >= 0) where += ", frame " + std::to_string(frame);
   throw Error(where + ": " + e.what());
 }
@@ -138,6 +128,7 @@ void register_run(CLI::App& app) {
     const Scenario sc = resolve_scenario(*o);
     const std::string sc_label = scenario_label(o->scenario);
     if (o->export_every > 0 && o->export_dir.empty()) throw Error("--export-every needs --export DIR");
+    if (o->strict && o->export_dir.empty()) throw Error("--strict needs --export DIR (it judges the exports)");
     check_memory_before_load(o->source, kRunBytesPerElement);
     StagedDir out(o->out, "--out");
     std::optional<StagedDir> export_dir;
@@ -165,6 +156,7 @@ void register_run(CLI::App& app) {
     so.link_violation = !o->no_link_check;
     so.cell_jacobian = !o->no_link_check;
     const bool progress = want_progress();
+    LimitedPullTracker limited(sc);
     float worst = 0;
     try {
       for (int f = 0; f < frames; ++f) {
@@ -176,11 +168,14 @@ void register_run(CLI::App& app) {
         }
         worst = std::max(worst, r.max_link_violation);
         csv.put(frames_csv_row(r));
+        if (const auto ended = limited.after_frame(r, sim.tool_offset(), sim.requested_offset()))
+          print_limited_pull(*ended, sim.model(), sc_label);
         exporter.after_frame(f, frames);
         if (progress) progress_bar("run", f + 1, frames);
       }
+      if (const auto ended = limited.finish()) print_limited_pull(*ended, sim.model(), sc_label);
       csv.close();
-      exporter.finish();
+      exporter.finish(frames);
     } catch (const Error& e) {
       throw Error(std::string(e.what()) + "\n  the frames computed so far are in " + out.path() + "/frames.csv");
     }
@@ -191,6 +186,13 @@ void register_run(CLI::App& app) {
                 out.final_path().c_str());
     if (so.link_violation) std::printf(" (max link violation %.3g)", worst);
     std::printf("\n");
+    if (o->strict && !exporter.problems().empty()) {
+      std::string msg = "--strict: the exports in " + export_dir->final_path() +
+                        " were written but must not be trusted as they are:";
+      for (const std::string& p : exporter.problems()) msg += "\n  " + p;
+      msg += "\n  (figures per export in " + export_dir->final_path() + "/export.json)";
+      throw Error(msg);
+    }
   });
 }
 

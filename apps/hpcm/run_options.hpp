@@ -1,7 +1,9 @@
 #pragma once
 // Options of `hpcm run` and the export hook that the IO layer fills in.
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "cli_common.hpp"
 
@@ -20,22 +22,29 @@ struct RunOptions {
   std::string export_dir;     ///< where the exports are written (the staging folder during a run)
   std::string export_shown;   ///< the --export folder as given, for messages (empty: export_dir)
   int export_every = 0;
+  bool strict = false;        ///< exit non-zero when an export folds or its inverse mapping did not converge
 };
 
-/// Adds --export DIR / --export-every N (no-op without ITK).
+/// Adds --export DIR / --export-every N / --strict (no-op without ITK).
 void add_export_options(CLI::App* cmd, RunOptions& o);
 
-/// Writes the exports of a run: every N frames and at the end (no-op without --export).
+/// Writes the exports of a run: every N frames and at the end (no-op without --export), each
+/// checked (fold-free field, converged inverse mapping) and recorded in DIR/export.json.
 class ExportSession {
  public:
   ExportSession(const RunOptions& o, Simulation& sim);
   void after_frame(int frame, int total);
-  void finish();
+  /// The final export, after `frames` frames.
+  void finish(int frames);
+  /// Problems found in any export ("FILE: what"), for --strict; empty when every export is clean.
+  const std::vector<std::string>& problems() const { return problems_; }
 
  private:
-  void write_frame(const std::string& tag, bool final_export);
+  void write_frame(const std::string& tag, int frames_done, bool final_export);
   const RunOptions& o_;
   Simulation& sim_;
+  std::vector<std::string> problems_;
+  nlohmann::json sidecar_;  ///< export.json, rewritten after every export
 #if defined(HPCM_WITH_ITK)
   io::Input input_;     ///< the input on its own grid, and how the lattice lies on it
 #endif

@@ -31,6 +31,7 @@ struct ConditionResult {
   // The tool: the largest offset the protocol asked for and the largest the tissue allowed.
   float max_requested_offset = 0, max_achieved_offset = 0;
   int first_limited_frame = -1;           ///< first frame the pull was limited (-1: never)
+  std::vector<LimitedPull> limited_pulls; ///< each stretch of limited frames, per grab and keyframe segment
 };
 
 struct Check {

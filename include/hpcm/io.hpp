@@ -147,23 +147,69 @@ std::vector<float> displacement_on_input_grid(const Input& in, const Model& m, c
 /// Tissue class label map (uint8: 0 air .. 3 bone) on `in.lattice_grid`, with a Slicer colour
 /// table (.ctbl) written beside it.
 void write_label_map(const Input& in, const Model& m, const std::string& path);
+
+/// Fold check of a displacement field u (millimetres, LPS components, 3 interleaved floats per
+/// voxel in the grid's own index order) on grid `g`: the map p -> p + u(p) in physical space.
+/// Every cell (8 neighbouring voxels) is a trilinear hexahedron; at each of its 8 corners the
+/// Jacobian is I + du/dp from the differences along the cell's three edges at that corner
+/// (forward differences at the low corners, backward at the high ones), divided through by the
+/// grid's own index-to-millimetre matrix. Its determinant is 1 where nothing moved; a cell with
+/// any corner determinant <= 0 is folded (the map turns it inside out there).
+struct FieldJacobianStats {
+  double min_det = 1;      ///< smallest corner determinant (meaningless when cells == 0)
+  Int3 min_det_cell{};     ///< where it is: the cell's first voxel (lowest indices), grid's own order
+  Index folded_cells = 0;  ///< cells with a corner determinant <= 0
+  Index cells = 0;         ///< cells checked: (nx-1)(ny-1)(nz-1)
+};
+FieldJacobianStats displacement_jacobian(const Grid& g, const std::vector<float>& u_mm);
+
+/// How well the deformed CT's inverse mapping converged: for each output voxel at x the rest
+/// position X solves X + u(X) = x; the residual |X + u(X) - x| left after the last iteration,
+/// in millimetres, must stay at or below `tolerance_mm`.
+struct InverseMappingStats {
+  Index voxels = 0;             ///< output voxels mapped
+  Index unconverged = 0;        ///< voxels whose residual exceeds tolerance_mm
+  double max_residual_mm = 0;   ///< largest residual over all voxels
+  Int3 worst_voxel{};           ///< where it is: voxel index in the output grid's own order
+  double tolerance_mm = 0;      ///< the tolerance applied
+  int max_iterations = 0;       ///< fixed-point iterations allowed per voxel
+  int newton_iterations = 0;    ///< Newton iterations allowed after them where the residual is still too large
+};
+/// Residual tolerance of the inverse mapping, millimetres.
+inline constexpr double kInverseMappingToleranceMm = 0.01;
+
 /// Deformed CT on the grid of `in.stored` (the input cropped to the ROI, never down-sampled),
 /// by inverse mapping; voxels whose rest position lies outside the input are air.
-void write_deformed_volume(const Input& in, const Model& m, const std::vector<Vec3>& pos, const std::string& path);
+InverseMappingStats write_deformed_volume(const Input& in, const Model& m, const std::vector<Vec3>& pos,
+                                          const std::string& path);
 /// Deformed CT on the grid of `target` (any grid: its index order and geometry).
-void write_deformed_volume(const Volume& target, const Model& m, const std::vector<Vec3>& pos,
-                           const std::string& path);
+InverseMappingStats write_deformed_volume(const Volume& target, const Model& m, const std::vector<Vec3>& pos,
+                                          const std::string& path);
+
+/// The figures that say whether an export can be trusted: the field is fold-free and every
+/// voxel of the deformed CT found its rest position.
+struct ExportIntegrity {
+  FieldJacobianStats field;       ///< of the displacement field as written (float32, millimetres)
+  InverseMappingStats deformed;   ///< of the deformed CT
+  bool fold_free() const { return field.folded_cells == 0; }
+  bool converged() const { return deformed.unconverged == 0; }
+  bool clean() const { return fold_free() && converged(); }
+};
 
 /// The files one export writes into a folder (names as `hpcm run --export` writes them).
 struct ExportFiles {
   std::string displacement_nifti;  ///< displacement_<tag>.nii.gz
   std::string displacement_nrrd;   ///< displacement_<tag>.nrrd (empty unless requested)
   std::string deformed;            ///< deformed_<tag><input's extension>
+  ExportIntegrity integrity;
 };
 /// Writes the displacement field (NIfTI, and NRRD when `nrrd_field`) and the deformed CT for
-/// the positions `pos` into folder `dir`, tagged `tag` ("final", "0020", ...).
+/// the positions `pos` into folder `dir`, tagged `tag` ("final", "0020", ...), and checks them.
 ExportFiles export_frame(const Input& in, const Model& m, const std::vector<Vec3>& pos, const std::string& dir,
                          const std::string& tag, bool nrrd_field);
+/// What is wrong with an export, one sentence per problem naming the file and the figures;
+/// empty when the export is clean.
+std::vector<std::string> export_problems(const ExportFiles& f);
 /// The extension deformed CTs of this input get (volume_extension_for its source; ".nii.gz"
 /// for inputs that are not files, e.g. the phantom).
 std::string deformed_extension(const Input& in);

@@ -39,6 +39,38 @@ struct Scenario {
 /// Tool offset of a grab action in relative frame r (linear between keyframes).
 Vec3 path_offset(const GrabAction& g, int r);
 
+/// Where a scenario frame lies: the grab held then and its keyframe segment.
+struct ScenarioPlace {
+  int grab = -1;     ///< index into Scenario::grabs; -1: no grab at that frame
+  int segment = -1;  ///< keyframe j the offset moves towards (held after the last); -1: none
+  std::string text;  ///< "grab[0], keyframes[0] to [1]"; empty without a grab
+};
+ScenarioPlace scenario_place(const Scenario& sc, int frame);
+
+/// A stretch of consecutive frames, within one grab and keyframe segment, in which the tool
+/// asked for more than the tissue allows and was limited (SPEC §4, infeasible requests).
+struct LimitedPull {
+  ScenarioPlace place;
+  int first_frame = 0, last_frame = 0;
+  /// Tool offsets (lattice units) at the frame of the stretch that asked for the most.
+  Vec3 achieved{}, requested{};
+};
+
+/// Collects the limited stretches of a run frame by frame, so that each can be reported once.
+class LimitedPullTracker {
+ public:
+  explicit LimitedPullTracker(const Scenario& sc) : scenario_(sc) {}
+  /// After each frame: its report and the tool offsets used in it (Simulation::tool_offset()
+  /// and requested_offset()). Returns the stretch that ended just before this frame, if any.
+  std::optional<LimitedPull> after_frame(const FrameReport& r, Vec3 achieved, Vec3 requested);
+  /// At the end of the run: the stretch still open, if any.
+  std::optional<LimitedPull> finish();
+
+ private:
+  const Scenario& scenario_;
+  std::optional<LimitedPull> open_;
+};
+
 /// Plays a scenario frame by frame on a Simulation.
 class ScenarioPlayer {
  public:

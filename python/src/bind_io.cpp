@@ -123,10 +123,23 @@ order: {"axis", "reversed"}: LPS axis p runs along stored axis axis[p], backward
         d["displacement_nifti"] = f.displacement_nifti;
         d["displacement_nrrd"] = f.displacement_nrrd.empty() ? py::object(py::none()) : py::object(py::str(f.displacement_nrrd));
         d["deformed"] = f.deformed;
+        const io::ExportIntegrity& ig = f.integrity;
+        py::dict jac, inv;
+        jac["cells"] = ig.field.cells;
+        jac["folded_cells"] = ig.field.folded_cells;
+        jac["min_det"] = ig.field.cells > 0 ? py::object(py::float_(ig.field.min_det)) : py::object(py::none());
+        inv["voxels"] = ig.deformed.voxels;
+        inv["unconverged"] = ig.deformed.unconverged;
+        inv["max_residual_mm"] = ig.deformed.max_residual_mm;
+        inv["tolerance_mm"] = ig.deformed.tolerance_mm;
+        d["displacement_jacobian"] = jac;
+        d["inverse_mapping"] = inv;
+        d["problems"] = io::export_problems(f);
         return d;
       }, py::arg("input"), py::arg("simulation"), py::arg("folder"), py::arg("tag") = "final", py::arg("nrrd") = true,
       "Writes displacement_<tag>.nii.gz (+ .nrrd) and deformed_<tag><input's extension> into `folder`, "
-      "as `hpcm run --export` does; returns the paths.");
+      "as `hpcm run --export` does; returns the paths, the field's Jacobian check (displacement_jacobian), the "
+      "deformed CT's inverse-mapping residuals (inverse_mapping) and the problems found (empty when clean).");
 }
 #else
 void bind_io(py::module_&) {}

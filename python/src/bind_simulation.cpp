@@ -143,6 +143,19 @@ py::dict condition_dict(const ConditionResult& c) {
   d["max_requested_offset"] = c.max_requested_offset;
   d["max_achieved_offset"] = c.max_achieved_offset;
   d["first_limited_frame"] = c.first_limited_frame;
+  py::list limited;
+  for (const LimitedPull& lp : c.limited_pulls) {
+    py::dict l;
+    l["first_frame"] = lp.first_frame;
+    l["last_frame"] = lp.last_frame;
+    l["grab"] = lp.place.grab;
+    l["keyframe_segment"] = lp.place.segment;
+    l["where"] = lp.place.text;
+    l["achieved_offset"] = vec3_tuple(lp.achieved);
+    l["requested_offset"] = vec3_tuple(lp.requested);
+    limited.append(l);
+  }
+  d["limited_pulls"] = limited;
   d["centre_rest"] = vec3_tuple(c.centre_rest);
   std::vector<Vec3> track = c.centre_track;
   const auto n = static_cast<py::ssize_t>(track.size());

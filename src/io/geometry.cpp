@@ -81,10 +81,14 @@ Grid grid_in_lps_order(const Grid& g, const IndexOrder& order) {
   return l;
 }
 
+double mat_det(const std::array<double, 9>& m) {
+  return m[0] * (m[4] * m[8] - m[5] * m[7]) - m[1] * (m[3] * m[8] - m[5] * m[6]) + m[2] * (m[3] * m[7] - m[4] * m[6]);
+}
+
 std::array<double, 9> mat_inverse(const std::array<double, 9>& m) {
   const double a = m[0], b = m[1], c = m[2], d = m[3], e = m[4], f = m[5], g = m[6], h = m[7], i = m[8];
   const double A = e * i - f * h, B = -(d * i - f * g), C = d * h - e * g;
-  const double det = a * A + b * B + c * C;
+  const double det = mat_det(m);
   if (!(std::abs(det) > 1e-300) || !std::isfinite(det)) throw Error("singular direction/spacing matrix");
   const double s = 1.0 / det;
   return {A * s, -(b * i - c * h) * s, (b * f - c * e) * s,
@@ -92,7 +96,6 @@ std::array<double, 9> mat_inverse(const std::array<double, 9>& m) {
           C * s, -(a * h - b * g) * s, (a * e - b * d) * s};
 }
 
-namespace {
 // Index -> physical: P = origin + D * diag(spacing) * q.
 std::array<double, 9> index_to_physical_matrix(const std::array<double, 9>& dir, const std::array<double, 3>& sp) {
   std::array<double, 9> a{};
@@ -100,6 +103,8 @@ std::array<double, 9> index_to_physical_matrix(const std::array<double, 9>& dir,
     for (int c = 0; c < 3; ++c) a[r * 3 + c] = dir[r * 3 + c] * sp[c];
   return a;
 }
+
+namespace {
 std::array<double, 9> mat_mul(const std::array<double, 9>& x, const std::array<double, 9>& y) {
   std::array<double, 9> r{};
   for (int i = 0; i < 3; ++i)
@@ -120,7 +125,7 @@ inline double snap(double q) {
 }  // namespace
 
 std::vector<float> resample_deformed(const Volume& original, const Model& m, const std::vector<Vec3>& pos,
-                                     int max_iterations) {
+                                     int max_iterations, int newton_iterations, InverseMappingStats* stats) {
   if (static_cast<Index>(pos.size()) != m.size())
     throw Error("deformed volume: " + std::to_string(pos.size()) + " positions for a lattice of " +
                 std::to_string(m.size()) + " elements");
@@ -144,10 +149,14 @@ std::vector<float> resample_deformed(const Volume& original, const Model& m, con
     u[i] = pos[i] - m.rest(i);
     any = any || u[i].x != 0 || u[i].y != 0 || u[i].z != 0;
   }
-  auto sample_u = [&](const double X[3], double out[3]) {
+  // Trilinear u at lattice point X and, when `grad` is given, its derivative
+  // grad[r * 3 + a] = du_r / dX_a (zero along an axis where X lies beyond the lattice).
+  auto sample_u = [&](const double X[3], double out[3], double* grad = nullptr) {
     int i0[3];
     double f[3];
+    bool inside[3];
     out[0] = out[1] = out[2] = 0;
+    if (grad) std::fill(grad, grad + 9, 0.0);
     // Outside the lattice u is extended constantly from its border (continuous, so the
     // fixed-point iteration stays well behaved).
     for (int a = 0; a < 3; ++a) {
@@ -155,17 +164,35 @@ std::vector<float> resample_deformed(const Volume& original, const Model& m, con
       int k = std::min(static_cast<int>(q), std::max(N[a] - 2, 0));
       i0[a] = k;
       f[a] = N[a] > 1 ? q - k : 0.0;
+      inside[a] = N[a] > 1 && X[a] >= 0.0 && X[a] <= double(N[a] - 1);
     }
     const Index sx = N[0] > 1 ? 1 : 0, sy = N[1] > 1 ? N[0] : 0, sz = N[2] > 1 ? Index(N[0]) * N[1] : 0;
     const Index base = i0[0] + Index(N[0]) * (i0[1] + Index(N[1]) * i0[2]);
     for (int k = 0; k < 8; ++k) {
-      const double w = ((k & 1) ? f[0] : 1 - f[0]) * ((k & 2) ? f[1] : 1 - f[1]) * ((k & 4) ? f[2] : 1 - f[2]);
-      if (w == 0) continue;
+      double wa[3], dwa[3];  // per-axis weight and its derivative
+      for (int a = 0; a < 3; ++a) {
+        const bool hi = (k >> a) & 1;
+        wa[a] = hi ? f[a] : 1 - f[a];
+        dwa[a] = inside[a] ? (hi ? 1.0 : -1.0) : 0.0;
+      }
+      const double w = wa[0] * wa[1] * wa[2];
+      if (w == 0 && !grad) continue;
       const Vec3& d = u[base + ((k & 1) ? sx : 0) + ((k & 2) ? sy : 0) + ((k & 4) ? sz : 0)];
-      out[0] += w * d.x;
-      out[1] += w * d.y;
-      out[2] += w * d.z;
+      const double dv[3] = {d.x, d.y, d.z};
+      for (int r = 0; r < 3; ++r) out[r] += w * dv[r];
+      if (!grad) continue;
+      const double dw[3] = {dwa[0] * wa[1] * wa[2], wa[0] * dwa[1] * wa[2], wa[0] * wa[1] * dwa[2]};
+      for (int r = 0; r < 3; ++r)
+        for (int a = 0; a < 3; ++a) grad[r * 3 + a] += dw[a] * dv[r];
     }
+  };
+  // |x - (X + u(X))| in millimetres; F receives x - (X + u(X)) in lattice units.
+  auto residual_mm = [&](const double xl[3], const double X[3], double F[3], double* grad = nullptr) {
+    double d[3];
+    sample_u(X, d, grad);
+    for (int a = 0; a < 3; ++a) F[a] = xl[a] - X[a] - d[a];
+    const std::array<double, 3> f_mm = mat_vec(A, {F[0], F[1], F[2]});
+    return std::sqrt(f_mm[0] * f_mm[0] + f_mm[1] * f_mm[1] + f_mm[2] * f_mm[2]);
   };
   auto sample_hu = [&](double q[3]) -> float {
     int i0[3], i1[3];
@@ -186,6 +213,11 @@ std::vector<float> resample_deformed(const Volume& original, const Model& m, con
     return static_cast<float>(v);
   };
   std::vector<float> out(original.size());
+  // Per output plane: unconverged voxels, the largest residual and where it is (combined in
+  // plane order afterwards, so the figures do not depend on the thread count).
+  std::vector<Index> plane_unconverged(static_cast<std::size_t>(O[2]), 0);
+  std::vector<double> plane_max(static_cast<std::size_t>(O[2]), -1.0);
+  std::vector<Int3> plane_worst(static_cast<std::size_t>(O[2]));
 #pragma omp parallel for schedule(dynamic, 1)
   for (int z = 0; z < O[2]; ++z) {
     for (int y = 0; y < O[1]; ++y) {
@@ -207,12 +239,55 @@ std::vector<float> resample_deformed(const Volume& original, const Model& m, con
             }
             if (change < 1e-5) break;
           }
+          // Where the fixed point is slow (|du/dX| near 1: strong compression or shear),
+          // Newton's method on X + u(X) = x, each step halved until the residual drops.
+          double F[3], G[9];
+          double residual = residual_mm(xl, X, F, G);
+          for (int it = 0; it < newton_iterations && residual > kInverseMappingToleranceMm; ++it) {
+            std::array<double, 9> J{1, 0, 0, 0, 1, 0, 0, 0, 1};
+            for (int k = 0; k < 9; ++k) J[k] += G[k];
+            if (!(std::abs(mat_det(J)) > 1e-12)) break;  // singular: folded here, no unique rest position
+            const std::array<double, 3> step = mat_vec(mat_inverse(J), {F[0], F[1], F[2]});
+            bool improved = false;
+            for (double t = 1.0; t > 1e-3 && !improved; t *= 0.5) {
+              const double Xt[3] = {X[0] + t * step[0], X[1] + t * step[1], X[2] + t * step[2]};
+              double Ft[3], Gt[9];
+              const double rt = residual_mm(xl, Xt, Ft, Gt);
+              if (rt < residual) {
+                improved = true;
+                residual = rt;
+                std::copy(Xt, Xt + 3, X);
+                std::copy(Ft, Ft + 3, F);
+                std::copy(Gt, Gt + 9, G);
+              }
+            }
+            if (!improved) break;
+          }
+          if (residual > plane_max[z]) {
+            plane_max[z] = residual;
+            plane_worst[z] = {x, y, z};
+          }
+          if (!(residual <= kInverseMappingToleranceMm)) ++plane_unconverged[z];
         }
         double q0[3];
         for (int r = 0; r < 3; ++r) q0[r] = Minv[r * 3] * X[0] + Minv[r * 3 + 1] * X[1] + Minv[r * 3 + 2] * X[2] + cinv[r];
         out[original.index(x, y, z)] = sample_hu(q0);
       }
     }
+  }
+  if (stats) {
+    *stats = {};
+    stats->voxels = static_cast<Index>(out.size());
+    for (int z = 0; z < O[2]; ++z) {
+      stats->unconverged += plane_unconverged[z];
+      if (plane_max[z] > stats->max_residual_mm) {
+        stats->max_residual_mm = plane_max[z];
+        stats->worst_voxel = plane_worst[z];
+      }
+    }
+    stats->tolerance_mm = kInverseMappingToleranceMm;
+    stats->max_iterations = max_iterations;
+    stats->newton_iterations = newton_iterations;
   }
   return out;
 }

@@ -15,6 +15,11 @@ namespace hpcm::io::detail {
 /// Air value (HU) for output voxels whose rest position lies outside the input.
 inline constexpr float kAirHU = -1000.0f;
 
+/// Fixed-point iterations the deformed CT's inverse mapping allows per voxel.
+inline constexpr int kInverseMappingIterations = 12;
+/// Newton steps allowed after them for voxels still above the tolerance.
+inline constexpr int kInverseMappingNewtonIterations = 20;
+
 enum class Format { Unknown, Nifti, NiftiGz, Nrrd, Nhdr, Mha, Mhd };
 Format format_of(const std::string& path);  ///< from the (lower-cased) extension
 const char* format_name(Format f);          ///< "NIfTI", "NRRD", "MetaImage", ...
@@ -58,14 +63,21 @@ void check_model_matches(const Input& in, const Model& m, const std::string& wha
 
 /// 3x3 helpers (row-major).
 std::array<double, 9> mat_inverse(const std::array<double, 9>& m);
+double mat_det(const std::array<double, 9>& m);
+/// Index -> physical millimetres: direction * diag(spacing) (column a = step along index axis a).
+std::array<double, 9> index_to_physical_matrix(const std::array<double, 9>& dir, const std::array<double, 3>& sp);
 
 /// Inverse-mapping resample of the deformed lattice onto the grid of `original` (any index
 /// order):
-/// output voxel q -> lattice point x; rest position X solves X = x - u(X) (fixed-point,
-/// trilinear u); HU = trilinear sample of `original` at X's physical position, kAirHU where
+/// output voxel q -> lattice point x; rest position X solves X = x - u(X) (trilinear u); HU = trilinear sample of `original` at X's physical position, kAirHU where
 /// that lies outside `original`. `pos` are lattice positions (pos.size() == m.size()).
+/// Up to `max_iterations` fixed-point steps from X = x, then, where the residual is still above
+/// kInverseMappingToleranceMm, up to `newton_iterations` Newton steps (with step halving).
+/// `stats` (optional) receives how well the inverse mapping converged.
 std::vector<float> resample_deformed(const Volume& original, const Model& m, const std::vector<Vec3>& pos,
-                                     int max_iterations = 12);
+                                     int max_iterations = kInverseMappingIterations,
+                                     int newton_iterations = kInverseMappingNewtonIterations,
+                                     InverseMappingStats* stats = nullptr);
 
 /// Lattice displacement pos - rest converted to millimetres in LPS physical space:
 /// u_mm = direction * (spacing (.) u). Interleaved xyz, pos.size() * 3 floats.

@@ -844,16 +844,20 @@ void write_displacement_field(const Input& in, const Model& m, const std::vector
               "a displacement field");
 }
 
-void write_deformed_volume(const Volume& target, const Model& m, const std::vector<Vec3>& pos,
-                           const std::string& path) {
+InverseMappingStats write_deformed_volume(const Volume& target, const Model& m, const std::vector<Vec3>& pos,
+                                          const std::string& path) {
   validate_volume(target, path);
-  const std::vector<float> hu = detail::resample_deformed(target, m, pos);
+  InverseMappingStats stats;
+  const std::vector<float> hu = detail::resample_deformed(target, m, pos, detail::kInverseMappingIterations,
+                                                          detail::kInverseMappingNewtonIterations, &stats);
   write_scalar(hu, target.dims, target.spacing, target.origin, target.direction, path);
+  return stats;
 }
 
-void write_deformed_volume(const Input& in, const Model& m, const std::vector<Vec3>& pos, const std::string& path) {
+InverseMappingStats write_deformed_volume(const Input& in, const Model& m, const std::vector<Vec3>& pos,
+                                          const std::string& path) {
   detail::check_model_matches(in, m, path + ": deformed CT");
-  write_deformed_volume(in.stored, m, pos, path);
+  return write_deformed_volume(in.stored, m, pos, path);
 }
 
 void write_label_map(const Input& in, const Model& m, const std::string& path) {

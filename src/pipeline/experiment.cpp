@@ -61,8 +61,11 @@ ConditionResult run_condition(const Model& model, Params params, DampingMode mod
     r.min_cell_jacobian = std::min(r.min_cell_jacobian, f.min_cell_jacobian);
     r.max_folded_cells = std::max(r.max_folded_cells, f.folded_cells);
   };
+  LimitedPullTracker limited(opt.scenario);
   while (!player.done()) {
     const FrameReport f = player.step(so);
+    if (auto ended = limited.after_frame(f, sim.tool_offset(), sim.requested_offset()))
+      r.limited_pulls.push_back(std::move(*ended));
     r.frames.push_back(f);
     integrity(f);
     r.max_requested_offset = std::max(r.max_requested_offset, f.requested_offset);
@@ -74,6 +77,7 @@ ConditionResult run_condition(const Model& model, Params params, DampingMode mod
     r.max_boundary_excess = std::max(r.max_boundary_excess, boundary_excess(s, model.dims, params.dynamics.margin));
     if (opt.progress) opt.progress(cond_index, ++done, total);
   }
+  if (auto ended = limited.finish()) r.limited_pulls.push_back(std::move(*ended));
   double cm = 0, in = 0, sn = 0, st = 0;
   for (const auto& f : r.frames) {
     cm += f.chainmail_ms;

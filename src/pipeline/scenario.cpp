@@ -77,6 +77,51 @@ ScenarioPlayer::ScenarioPlayer(const Scenario& s, Simulation& sim) : scenario_(s
     centres_.push_back(g.centre ? sim.model().index(g.centre->x, g.centre->y, g.centre->z) : paper_grab_centre(sim.model()));
 }
 
+ScenarioPlace scenario_place(const Scenario& sc, int frame) {
+  ScenarioPlace p;
+  for (std::size_t k = 0; k < sc.grabs.size() && frame >= 0; ++k) {
+    const GrabAction& g = sc.grabs[k];
+    if (frame < g.start || frame > g.start + g.release) continue;
+    p.grab = static_cast<int>(k);
+    p.text = "grab[" + std::to_string(k) + "]";
+    // Keyframe segment that frame lies in (offsets are reached at the end of relative frame r).
+    const int t = frame - g.start + 1;
+    for (std::size_t j = 0; j < g.path.size(); ++j)
+      if (t <= g.path[j].frame || j + 1 == g.path.size()) {
+        p.segment = static_cast<int>(j);
+        p.text += j == 0 ? ", keyframes[0]" : ", keyframes[" + std::to_string(j - 1) + "] to [" + std::to_string(j) + "]";
+        break;
+      }
+    break;
+  }
+  return p;
+}
+
+std::optional<LimitedPull> LimitedPullTracker::after_frame(const FrameReport& r, Vec3 achieved, Vec3 requested) {
+  std::optional<LimitedPull> ended;
+  const ScenarioPlace place = r.tool_limited ? scenario_place(scenario_, r.frame) : ScenarioPlace{};
+  const bool continues = open_ && r.tool_limited && open_->last_frame + 1 == r.frame && open_->place.grab == place.grab &&
+                         open_->place.segment == place.segment;
+  if (open_ && !continues) {
+    ended = std::move(open_);
+    open_.reset();
+  }
+  if (!r.tool_limited) return ended;
+  if (!open_) open_ = LimitedPull{place, r.frame, r.frame, achieved, requested};
+  open_->last_frame = r.frame;
+  if (norm(requested) >= norm(open_->requested)) {
+    open_->requested = requested;
+    open_->achieved = achieved;
+  }
+  return ended;
+}
+
+std::optional<LimitedPull> LimitedPullTracker::finish() {
+  std::optional<LimitedPull> ended = std::move(open_);
+  open_.reset();
+  return ended;
+}
+
 FrameReport ScenarioPlayer::step(const StepOptions& opt) {
   for (std::size_t k = 0; k < scenario_.grabs.size(); ++k) {
     const auto& g = scenario_.grabs[k];

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # hpcm phantom / run checks: four tissue classes, plain HP-ChainMail keeps every link within
-# its box (max_link_violation <= 1e-5 in every frame), the pull grows to 6, bad options fail.
+# its box (max_link_violation <= 1e-5 in every frame), the pull grows to 6, bad options fail;
+# a limited pull is reported once (an impossible pull) and not at all (a feasible one).
 set -u
 HPCM=$1
 OUT=$2
@@ -25,6 +26,23 @@ awk -F, 'NR > 1 && ($6 < 0 || $6 > 1e-5) { print "FAIL: frame " $1 " max_link_vi
 # Deform rows: grab_offset grows (non-decreasing) up to 6.
 awk -F, 'NR > 1 && $2 == "deform" { if ($3 + 1e-6 < last) { print "FAIL: grab_offset decreases at frame " $1; bad = 1 } last = $3; mx = ($3 > mx ? $3 : mx) }
          END { if (mx < 6 - 1e-4 || mx > 6 + 1e-4) { print "FAIL: largest grab_offset " mx ", expected 6"; bad = 1 } exit bad }' "$csv" || exit 1
+
+# The pull to 6 is feasible on this phantom: no note that it was limited.
+if grep -q "pull was limited" "$OUT/run.log"; then fail "feasible pull reported as limited: $(cat "$OUT/run.log")"; fi
+
+# An impossible pull (40 lattice units on a 48x48x32 phantom): the tool is limited over a
+# stretch of frames, and the run says so exactly once, naming that stretch of frames.
+printf '[scenario]\nname = "too_far"\nframes = 40\n\n[[grab]]\ncentre = "auto"\nstart = 0\nrelease = 30\nkeyframes = [[20, 0.0, -40.0, 0.0]]\n' \
+  > "$OUT/too_far.toml"
+"$HPCM" run --phantom 48,48,32 --scenario "$OUT/too_far.toml" --no-link-check --out "$OUT/far" > "$OUT/far.log" 2>&1 \
+  || fail "impossible pull: run exited non-zero: $(cat "$OUT/far.log")"
+notes=$(grep -c "pull was limited" "$OUT/far.log")
+[ "$notes" -eq 1 ] || fail "impossible pull: $notes limited-pull notes, expected exactly 1: $(cat "$OUT/far.log")"
+# tool_limited is column 22 of frames.csv; the note names its first and last limited frame.
+range=$(awk -F, 'NR > 1 && $22 == 1 { if (first == "") first = $1; last = $1 } END { print first "-" last }' "$OUT/far/frames.csv")
+[ "$range" != "-" ] || fail "impossible pull: no frame of frames.csv has tool_limited = 1"
+grep -q "pull was limited in frames $range (" "$OUT/far.log" || fail "impossible pull: the note does not name frames $range: $(cat "$OUT/far.log")"
+grep -q "of the requested 40 lattice units" "$OUT/far.log" || fail "impossible pull: the note does not give the requested 40: $(cat "$OUT/far.log")"
 
 if "$HPCM" run --frames -3 --out "$OUT/bad" > "$OUT/bad.log" 2>&1; then fail "--frames -3 accepted"; fi
 grep -q -- "--frames" "$OUT/bad.log" || fail "--frames -3 message does not name the option: $(cat "$OUT/bad.log")"

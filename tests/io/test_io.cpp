@@ -455,8 +455,133 @@ TEST(Export, DeformedVolumeFollowsTheDisplacement) {
     const Int3 c = m.coords(i);
     pos[i].y -= 0.8f * std::exp(-0.1f * float((c.x - 6) * (c.x - 6) + (c.z - 4) * (c.z - 4)));
   }
-  out = io::detail::resample_deformed(v, m, pos);
+  io::InverseMappingStats st;
+  out = io::detail::resample_deformed(v, m, pos, io::detail::kInverseMappingIterations,
+                                      io::detail::kInverseMappingNewtonIterations, &st);
   for (float h : out) ASSERT_TRUE(std::isfinite(h));
+  EXPECT_EQ(st.voxels, static_cast<Index>(v.size()));
+  EXPECT_EQ(st.unconverged, 0);
+  EXPECT_LE(st.max_residual_mm, st.tolerance_mm);
+  EXPECT_EQ(st.tolerance_mm, io::kInverseMappingToleranceMm);
+}
+
+// ---- integrity of exports: the field's Jacobian, the inverse mapping's residual ----------
+
+// u(p) = G (p - c) in millimetres on every voxel of grid g: the map p -> p + u has Jacobian I + G.
+std::vector<float> affine_field(const io::Grid& g, const std::array<double, 9>& G) {
+  std::vector<float> u(3 * g.size());
+  std::size_t k = 0;
+  for (int z = 0; z < g.dims.z; ++z)
+    for (int y = 0; y < g.dims.y; ++y)
+      for (int x = 0; x < g.dims.x; ++x, ++k) {
+        const double q[3] = {double(x), double(y), double(z)};
+        double p[3];
+        for (int r = 0; r < 3; ++r) {
+          p[r] = g.origin[r];
+          for (int a = 0; a < 3; ++a) p[r] += g.direction[r * 3 + a] * g.spacing[a] * q[a];
+        }
+        for (int r = 0; r < 3; ++r) u[3 * k + r] = float(G[r * 3] * p[0] + G[r * 3 + 1] * p[1] + G[r * 3 + 2] * p[2]);
+      }
+  return u;
+}
+
+TEST(ExportIntegrity, JacobianOfKnownFieldsOnAnyGrid) {
+  io::Grid g;
+  g.dims = {7, 6, 5};
+  g.spacing = {2.0, 3.0, 0.5};
+  g.origin = {-40, 12, 100};
+  // A stored order that is not LPS and reflected (det -1): the physical Jacobian must not care.
+  g.direction = {-1, 0, 0, /**/ 0, 0, 1, /**/ 0, 1, 0};
+  const std::int64_t cells = 6 * 5 * 4;
+  io::FieldJacobianStats st = io::displacement_jacobian(g, std::vector<float>(3 * g.size(), 0.0f));
+  EXPECT_EQ(st.cells, cells);
+  EXPECT_EQ(st.folded_cells, 0);
+  EXPECT_NEAR(st.min_det, 1.0, 1e-12);
+  // Stretch and shear: det(I + G) = 1.3 * 0.8 * 1.1 (upper triangular) everywhere.
+  const std::array<double, 9> stretch = {0.3, 0.2, -0.1, /**/ 0, -0.2, 0.4, /**/ 0, 0, 0.1};
+  st = io::displacement_jacobian(g, affine_field(g, stretch));
+  EXPECT_EQ(st.folded_cells, 0);
+  EXPECT_NEAR(st.min_det, 1.3 * 0.8 * 1.1, 1e-4);
+  // A mirror along x (I + G = diag(-1, 1, 1)) turns every cell inside out.
+  const std::array<double, 9> mirror = {-2, 0, 0, /**/ 0, 0, 0, /**/ 0, 0, 0};
+  st = io::displacement_jacobian(g, affine_field(g, mirror));
+  EXPECT_EQ(st.folded_cells, cells);
+  EXPECT_NEAR(st.min_det, -1.0, 1e-4);
+  // A grid without cells (an axis of one voxel) checks nothing and says so.
+  g.dims = {7, 6, 1};
+  EXPECT_EQ(io::displacement_jacobian(g, std::vector<float>(3 * g.size(), 0.0f)).cells, 0);
+  EXPECT_NE(error_of([&] { io::displacement_jacobian(g, std::vector<float>(5, 0.0f)); }).find("5 values"), std::string::npos);
+}
+
+// A fold planted in the positions (the solver never makes one): the export is written, and its
+// integrity figures and problems say which files are affected. `hpcm run --strict` exits
+// non-zero exactly when export_problems() is not empty.
+TEST(ExportIntegrity, FoldedPositionsAreReportedAndNamed) {
+  Scratch s;
+  Volume v = make_volume({10, 9, 8}, true);
+  const io::Input in = input_of(v);
+  const Model m = model_from(in.lattice);
+
+  const io::ExportFiles clean = io::export_frame(in, m, rest_positions(m), s.dir.string(), "rest", true);
+  EXPECT_TRUE(clean.integrity.clean());
+  EXPECT_EQ(clean.integrity.field.cells, 9 * 8 * 7);
+  EXPECT_EQ(clean.integrity.deformed.voxels, static_cast<Index>(v.size()));
+  EXPECT_TRUE(io::export_problems(clean).empty());
+
+  std::vector<Vec3> pos = rest_positions(m);
+  pos[m.index(5, 4, 4)].x += 2.5f;  // past its +x neighbour: the cells around it turn inside out
+  const io::ExportFiles f = io::export_frame(in, m, pos, s.dir.string(), "folded", true);
+  EXPECT_TRUE(fs::exists(f.displacement_nifti) && fs::exists(f.displacement_nrrd) && fs::exists(f.deformed));
+  EXPECT_FALSE(f.integrity.fold_free());
+  EXPECT_FALSE(f.integrity.clean());
+  EXPECT_GT(f.integrity.field.folded_cells, 0);
+  EXPECT_LE(f.integrity.field.folded_cells, 8);  // only the 8 cells around the moved element
+  EXPECT_LT(f.integrity.field.min_det, 0.0);
+  const Int3 at = f.integrity.field.min_det_cell;  // one of the 8 cells that share element (5,4,4)
+  EXPECT_TRUE(at.x >= 4 && at.x <= 5 && at.y >= 3 && at.y <= 4 && at.z >= 3 && at.z <= 4)
+      << at.x << "," << at.y << "," << at.z;
+  const std::vector<std::string> problems = io::export_problems(f);
+  ASSERT_FALSE(problems.empty());
+  EXPECT_NE(problems[0].find("displacement_folded.nii.gz and displacement_folded.nrrd: the displacement field folds"),
+            std::string::npos)
+      << problems[0];
+  EXPECT_NE(problems[0].find("of 504 cells"), std::string::npos) << problems[0];
+}
+
+// An inverse mapping that cannot converge in the iterations allowed is counted, with its residual.
+TEST(ExportIntegrity, UnconvergedInverseMappingIsCounted) {
+  const Volume v = make_volume({12, 10, 8}, false);
+  const Model m = model_from(v);
+  // A compression along x about the middle: u(X) = -0.9 (X - 5.5), |du/dX| = 0.9 (det 0.1,
+  // not folded). The fixed-point iteration contracts by only 0.9 per step: 12 steps leave
+  // 0.9^12 = 28 % of the error; Newton's method solves it at once.
+  std::vector<Vec3> pos = rest_positions(m);
+  for (Index i = 0; i < m.size(); ++i) pos[i].x -= 0.9f * (float(m.coords(i).x) - 5.5f);
+  io::InverseMappingStats st;
+  io::detail::resample_deformed(v, m, pos, io::detail::kInverseMappingIterations, 0, &st);
+  EXPECT_GT(st.unconverged, 0);
+  EXPECT_GT(st.max_residual_mm, st.tolerance_mm);
+  EXPECT_EQ(st.max_iterations, io::detail::kInverseMappingIterations);
+  EXPECT_TRUE(st.worst_voxel.x >= 0 && st.worst_voxel.x < 12 && st.worst_voxel.y >= 0 && st.worst_voxel.y < 10 &&
+              st.worst_voxel.z >= 0 && st.worst_voxel.z < 8);
+  EXPECT_EQ(st.newton_iterations, 0);
+  io::ExportFiles f;
+  f.deformed = "/somewhere/deformed_final.nrrd";
+  f.integrity.deformed = st;
+  const std::vector<std::string> problems = io::export_problems(f);
+  ASSERT_EQ(problems.size(), 1u);
+  EXPECT_NE(problems[0].find("deformed_final.nrrd: the inverse mapping did not converge for " +
+                             std::to_string(st.unconverged) + " of " + std::to_string(v.size()) + " voxels"),
+            std::string::npos)
+      << problems[0];
+  EXPECT_NE(problems[0].find("at voxel " + std::to_string(st.worst_voxel.x) + "," + std::to_string(st.worst_voxel.y) +
+                             "," + std::to_string(st.worst_voxel.z)),
+            std::string::npos)
+      << problems[0];
+  // With the Newton steps the export allows it converges.
+  io::detail::resample_deformed(v, m, pos, io::detail::kInverseMappingIterations,
+                                io::detail::kInverseMappingNewtonIterations, &st);
+  EXPECT_EQ(st.unconverged, 0) << "largest residual " << st.max_residual_mm << " mm";
 }
 
 TEST(Export, LabelMapWithSlicerColourTable) {

@@ -262,3 +262,47 @@ TEST(FramePipeline, SimdPathsBitwiseIdentical) {
     EXPECT_GT(moved, 0.01f) << "the run must move after release, or equality is trivial";
   }
 }
+
+// A limited pull is one stretch per grab and keyframe segment: consecutive limited frames in
+// the same segment join, a new segment, a gap or a new grab starts another; the figures are
+// those of the frame that asked for the most.
+TEST(LimitedPulls, OneStretchPerGrabAndKeyframeSegment) {
+  Scenario sc;
+  sc.frames = 40;
+  GrabAction g;
+  g.start = 0;
+  g.path = {{10, {0, -8, 0}}, {20, {0, -4, 0}}};  // segment 0: frames 0-9, segment 1: 10-19, held after
+  g.release = 25;
+  sc.grabs.push_back(g);
+  GrabAction g2 = g;
+  g2.start = 30;
+  g2.release = 5;
+  sc.grabs.push_back(g2);
+  LimitedPullTracker t(sc);
+  std::vector<LimitedPull> got;
+  for (int f = 0; f < 40; ++f) {
+    FrameReport r;
+    r.frame = f;
+    // Limited in frames 5-14 (across the segment change at 10), 22 and 31-33.
+    r.tool_limited = (f >= 5 && f <= 14) || f == 22 || (f >= 31 && f <= 33);
+    const Vec3 requested = path_offset(f < 30 ? sc.grabs[0] : sc.grabs[1], f < 30 ? f : f - 30);
+    const Vec3 achieved{0, std::max(requested.y, -5.0f), 0};
+    if (auto s = t.after_frame(r, achieved, requested)) got.push_back(*s);
+  }
+  if (auto s = t.finish()) got.push_back(*s);
+  ASSERT_EQ(got.size(), 4u);
+  const int first[4] = {5, 10, 22, 31}, last[4] = {9, 14, 22, 33}, grab[4] = {0, 0, 0, 1}, segment[4] = {0, 1, 1, 0};
+  for (int k = 0; k < 4; ++k) {
+    EXPECT_EQ(got[k].first_frame, first[k]) << k;
+    EXPECT_EQ(got[k].last_frame, last[k]) << k;
+    EXPECT_EQ(got[k].place.grab, grab[k]) << k;
+    EXPECT_EQ(got[k].place.segment, segment[k]) << k;
+  }
+  EXPECT_EQ(got[0].place.text, "grab[0], keyframes[0]");
+  EXPECT_EQ(got[1].place.text, "grab[0], keyframes[0] to [1]");
+  // Segment 0 asks for the most at its last limited frame (9: -8 * 10/10 reached at frame 9).
+  EXPECT_FLOAT_EQ(got[0].requested.y, path_offset(sc.grabs[0], 9).y);
+  EXPECT_FLOAT_EQ(got[0].achieved.y, -5.0f);
+  // Segment 1 goes back from -8 to -4: the first frame of the stretch asked for the most.
+  EXPECT_FLOAT_EQ(got[1].requested.y, path_offset(sc.grabs[0], 10).y);
+}
