@@ -1,4 +1,4 @@
-// One deformation frame of the paper protocol (SPEC §7) on the 128x128x75 phantom:
+// One deformation frame of the paper protocol on the 128x128x75 phantom:
 // the parallel brick-sparse solver (OpenMP, 1 and 2 threads) against Gibson's classic
 // sequential 3D ChainMail and the sequential Dijkstra-order reference, on the same wave.
 //

@@ -9,6 +9,7 @@ struct PropagateStats {
   int sweeps = 0;          ///< sweeps until nothing changed
   bool converged = true;   ///< false if the sweep cap was hit
   Index reached = 0;       ///< elements the wave moved (finite arrival time, not FIXED)
+  Index largest_bucket = 0;  ///< most elements decided together in one time bucket (CPU; above 1024 they are split among threads)
 };
 
 struct RelaxStats {

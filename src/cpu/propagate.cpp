@@ -82,6 +82,7 @@ PropagateStats Propagation::run(Storage& st, const std::vector<Index>& fixed, co
     list.erase(std::remove_if(list.begin(), list.end(), [&](Index e) { return final_[L.at(e)] != 0; }), list.end());
     if (list.empty()) continue;
     const std::int64_t n = static_cast<std::int64_t>(list.size());
+    ps.largest_bucket = std::max(ps.largest_bucket, static_cast<Index>(n));
     if (static_cast<std::int64_t>(scratch_t_.size()) < n) {
       scratch_t_.resize(static_cast<std::size_t>(n));
       scratch_p_.resize(static_cast<std::size_t>(n));
