@@ -8,6 +8,7 @@
 // they are asserted where the lattice is that large.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <ostream>
@@ -31,22 +32,26 @@ struct VariantCase {
 // hold, so this list cannot go stale.
 struct KnownFailure {
   PhantomVariant variant;
+  int nx;  ///< lattice size (x) it was measured on
   const char* check;
   const char* why;
 };
 constexpr KnownFailure kKnownFailures[] = {
-    {PhantomVariant::ThinTissue, "C_peak_below_B",
+    {PhantomVariant::ThinTissue, 48, "C_peak_below_B",
      "the grab sphere reaches the fat-bone link over the anchored plate, so the tool moves 0.02 cells and B and C "
      "differ only at noise level"},
-    {PhantomVariant::AirPockets, "C_hierarchy_peak",
+    {PhantomVariant::ThinTissue, 64, "A_no_overshoot",
+     "at 64x64x48 over-relaxation carries the grab centre 0.0017 cells past rest on release, and coming back it moves "
+     "away from rest by 2.8e-5"},
+    {PhantomVariant::AirPockets, 48, "C_hierarchy_peak",
      "muscle&organ's Peak exceeds skin&fat's: the wall over the gas pocket moves with the skin; the margin is 4 % on "
      "the standard 48x48x32 phantom"},
-    {PhantomVariant::Table, "C_hierarchy_peak", "muscle&organ's Peak exceeds skin&fat's with the body on the anchored table"},
-    {PhantomVariant::Table, "C_hierarchy_auc", "muscle&organ's AUC exceeds skin&fat's with the body on the anchored table"},
+    {PhantomVariant::Table, 48, "C_hierarchy_peak", "muscle&organ's Peak exceeds skin&fat's with the body on the anchored table"},
+    {PhantomVariant::Table, 48, "C_hierarchy_auc", "muscle&organ's AUC exceeds skin&fat's with the body on the anchored table"},
 };
-const KnownFailure* known_failure(PhantomVariant v, const std::string& check) {
+const KnownFailure* known_failure(PhantomVariant v, int nx, const std::string& check) {
   for (const auto& k : kKnownFailures)
-    if (k.variant == v && check == k.check) return &k;
+    if (k.variant == v && k.nx == nx && check == k.check) return &k;
   return nullptr;
 }
 
@@ -87,7 +92,7 @@ TEST_P(PhantomVariantExperiment, ChecksHoldWithDefaults) {
                 c.value, c.threshold, assert_it ? "" : " (not asserted below 48)");
     if (!assert_it) continue;
     asserted.insert(c.name);
-    if (const KnownFailure* k = known_failure(vc.variant, c.name)) {
+    if (const KnownFailure* k = known_failure(vc.variant, vc.dims.x, c.name)) {
       std::printf("    known failure: %s\n", k->why);
       EXPECT_FALSE(c.holds) << c.name << " now holds on " << phantom_variant_name(vc.variant)
                             << ": remove it from kKnownFailures and from docs/tuning.md";
@@ -119,14 +124,19 @@ TEST_P(PhantomVariantExperiment, ChecksHoldWithDefaults) {
   // anchored plate), and as far as the solver reports for the tool.
   EXPECT_GT(dist_at_release, 0.01f) << "the pull did not move the grab centre";
   EXPECT_NEAR(dist_at_release, a.max_achieved_offset, 1e-3f);
-  EXPECT_LE(worst_increase, 1e-6f) << "condition A moved the grab centre away from rest after release";
+  // The reported check (asserted above, unless a known failure) measures the same thing.
+  const auto a_check = std::find_if(r.checks.begin(), r.checks.end(), [](const Check& c) { return c.name == "A_no_overshoot"; });
+  ASSERT_NE(a_check, r.checks.end());
+  EXPECT_NEAR(std::max(0.0f, worst_increase), a_check->value, 1e-7);
 }
 
 INSTANTIATE_TEST_SUITE_P(
     Variants, PhantomVariantExperiment,
     ::testing::Values(VariantCase{PhantomVariant::ThinTissue, {48, 48, 32}}, VariantCase{PhantomVariant::ThickFat, {48, 48, 32}},
                       VariantCase{PhantomVariant::AirPockets, {48, 48, 32}}, VariantCase{PhantomVariant::Table, {48, 48, 32}},
-                      VariantCase{PhantomVariant::Anisotropic, {48, 48, 32}}),
+                      VariantCase{PhantomVariant::Anisotropic, {48, 48, 32}},
+                      // Thin tissue stays 2 elements thick at any size; at 64 A is measured to overshoot.
+                      VariantCase{PhantomVariant::ThinTissue, {64, 64, 48}}),
     [](const ::testing::TestParamInfo<VariantCase>& info) {
       std::string n = phantom_variant_name(info.param.variant);
       for (char& ch : n)
