@@ -75,8 +75,14 @@ void add_volume_options(CLI::App* cmd, VolumeSource& src) {
                                                            std::to_string(src.default_phantom.y) + "," +
                                                            std::to_string(src.default_phantom.z) + ")");
   auto* in = cmd->add_option("--input", src.input, "CT volume (.nii, .nii.gz, .nrrd, .nhdr, .mha, .mhd) or DICOM directory");
+  auto* variant = cmd->add_option("--phantom-variant", src.phantom_variant,
+                                  "Phantom anatomy: standard | thin-tissue | thick-fat | air-pockets | table | "
+                                  "anisotropic (see docs/tuning.md)")
+                       ->capture_default_str();
   ph->excludes(in);
   in->excludes(ph);
+  variant->excludes(in);
+  in->excludes(variant);
   add_int_option(cmd, "--downsample", src.downsample, 1, 4096, "Integer down-sampling factor per axis (block mean of HU)");
   cmd->add_option("--roi", src.roi, "Crop x0,y0,z0,x1,y1,z1 in voxels of the input (upper bounds exclusive)");
   cmd->add_option("--series", src.series, "DICOM series instance UID (directories with several series)");
@@ -118,6 +124,7 @@ Volume load_volume_full(const VolumeSource& src) {
   PhantomOptions po;
   po.dims = src.phantom.empty() ? src.default_phantom : parse_int3(src.phantom, "--phantom", 8, 4096);
   po.seed = src.seed;
+  po.variant = parse_phantom_variant(src.phantom_variant, "--phantom-variant");
   return make_phantom(po);
 }
 

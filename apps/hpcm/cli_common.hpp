@@ -13,10 +13,11 @@
 
 namespace hpcm::cli {
 
-/// --phantom NX,NY,NZ | --input VOLUME [--downsample F] [--roi x0,y0,z0,x1,y1,z1] [--series UID] [--seed S]
+/// --phantom NX,NY,NZ [--phantom-variant NAME] | --input VOLUME [--downsample F] [--roi x0,y0,z0,x1,y1,z1] [--series UID] [--seed S]
 /// [--dicom-duplicates error|first] [--dicom-skip-unreadable]
 struct VolumeSource {
   std::string phantom;     ///< "NX,NY,NZ"
+  std::string phantom_variant = "standard";
   std::string input;       ///< file or DICOM directory
   int downsample = 1;
   std::string roi;

@@ -136,7 +136,8 @@ void register_experiment(CLI::App& app) {
     t3 << "condition,chainmail_ms,inertia_ms,snapshot_ms,sim_total_ms\n";
     nlohmann::json js;
     js["lattice"] = {{"dims", {m.dims.x, m.dims.y, m.dims.z}}, {"elements", m.size()},
-                     {"source", o->source.input.empty() ? "phantom " + (o->source.phantom.empty() ? std::string("128,128,75") : o->source.phantom)
+                     {"source", o->source.input.empty() ? "phantom " + (o->source.phantom.empty() ? std::string("128,128,75") : o->source.phantom) +
+                                                              (o->source.phantom_variant == "standard" ? "" : " " + o->source.phantom_variant)
                                                         : o->source.input},
                      {"downsample", o->source.downsample}, {"class_count", {}}};
     for (int t = 0; t < kTissueCount; ++t) js["lattice"]["class_count"][tissue_name(t)] = m.class_count[t];

@@ -74,7 +74,8 @@ void register_info(CLI::App& app) {
         std::printf("%-11s%s\n", "input", src.input.c_str());
       }
     } else {
-      std::printf("%-11sphantom %s (seed %llu)\n", "input", src.phantom.c_str(), static_cast<unsigned long long>(src.seed));
+      std::printf("%-11sphantom %s (variant %s, seed %llu)\n", "input", src.phantom.c_str(), src.phantom_variant.c_str(),
+                  static_cast<unsigned long long>(src.seed));
     }
     print_geometry("dims", full);
     double sum = 0;

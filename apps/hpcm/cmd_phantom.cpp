@@ -12,6 +12,7 @@ namespace hpcm::cli {
 void register_phantom(CLI::App& app) {
   struct Opts {
     std::string size = "128,128,75";
+    std::string variant = "standard";
     std::uint64_t seed = 1;
     float noise = 12.0f;
     bool summary = false;
@@ -22,6 +23,9 @@ void register_phantom(CLI::App& app) {
   auto* cmd = app.add_subcommand("phantom", "Generate the synthetic abdominal phantom");
   cmd->add_option("--size", o->size, "NX,NY,NZ, each in [8, 4096]")->capture_default_str();
   add_seed_option(cmd, "--seed", o->seed, "Noise seed");
+  cmd->add_option("--variant", o->variant,
+                  "Anatomy: standard | thin-tissue | thick-fat | air-pockets | table | anisotropic (see docs/tuning.md)")
+      ->capture_default_str();
   cmd->add_option("--noise", o->noise, "Noise standard deviation in HU, [0, 200]")->capture_default_str();
   cmd->add_flag("--summary", o->summary, "Print dims and the element count per tissue class");
   cmd->add_option("--params", o->params, "Parameter file (tissue thresholds for the summary)");
@@ -31,6 +35,7 @@ void register_phantom(CLI::App& app) {
     po.dims = parse_int3(o->size, "--size", 8, 4096);
     po.seed = o->seed;
     po.noise_hu = o->noise;
+    po.variant = parse_phantom_variant(o->variant, "--variant");
     if (!(o->noise >= 0 && o->noise <= 200)) throw Error("--noise " + std::to_string(o->noise) + " is out of range [0, 200]");
     const bool summary = o->summary || o->out.empty();
     const Params p = summary ? load_params_option(o->params) : Params{};

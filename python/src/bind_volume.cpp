@@ -75,16 +75,19 @@ indexed [x, y, z]; `direction` columns are the physical directions of the index 
                std::to_string(v.spacing[2]) + " mm>";
       });
 
-  m.def("phantom", [](py::handle dims, std::uint64_t seed, float noise_hu) {
+  m.def("phantom", [](py::handle dims, std::uint64_t seed, float noise_hu, const std::string& variant) {
         const auto d = triple(dims, "dims");
         PhantomOptions o;
         o.dims = {static_cast<int>(d[0]), static_cast<int>(d[1]), static_cast<int>(d[2])};
         o.seed = seed;
         o.noise_hu = noise_hu;
+        o.variant = parse_phantom_variant(variant, "variant");
         return make_phantom(o);
       },
       py::arg("dims") = py::make_tuple(128, 128, 75), py::arg("seed") = 1, py::arg("noise_hu") = 12.0f,
-      "The built-in synthetic abdominal phantom (LPS index order), deterministic for given options.");
+      py::arg("variant") = "standard",
+      "The built-in synthetic abdominal phantom (LPS index order), deterministic for given options. variant: "
+      "'standard', 'thin-tissue', 'thick-fat', 'air-pockets', 'table' or 'anisotropic'.");
 
   m.def("downsample", &downsample, py::arg("volume"), py::arg("factor"),
         "Block mean over complete factor^3 blocks in the volume's own index order (see docs/io.md).");

@@ -1,8 +1,43 @@
 #include "hpcm/phantom.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace hpcm {
+
+namespace {
+struct VariantName {
+  PhantomVariant variant;
+  const char* name;
+};
+constexpr VariantName kVariantNames[] = {
+    {PhantomVariant::Standard, "standard"},   {PhantomVariant::ThinTissue, "thin-tissue"},
+    {PhantomVariant::ThickFat, "thick-fat"},  {PhantomVariant::AirPockets, "air-pockets"},
+    {PhantomVariant::Table, "table"},         {PhantomVariant::Anisotropic, "anisotropic"},
+};
+}  // namespace
+
+const char* phantom_variant_name(PhantomVariant v) {
+  for (const auto& e : kVariantNames)
+    if (e.variant == v) return e.name;
+  return "unknown";
+}
+
+PhantomVariant parse_phantom_variant(const std::string& name, const std::string& option) {
+  std::string valid;
+  for (const auto& e : kVariantNames) {
+    if (name == e.name) return e.variant;
+    valid += std::string(valid.empty() ? "" : ", ") + e.name;
+  }
+  throw Error(option + " '" + name + "' is not a phantom variant; valid: " + valid);
+}
+
+std::vector<PhantomVariant> all_phantom_variants() {
+  std::vector<PhantomVariant> out;
+  for (const auto& e : kVariantNames) out.push_back(e.variant);
+  return out;
+}
+
 namespace {
 
 // Counter-based RNG: every voxel draws from (seed, index), so the phantom does not depend on
@@ -31,23 +66,57 @@ bool in_ellipsoid(double x, double y, double z, double cx, double cy, double cz,
   return u * u + v * v + w * w <= 1.0;
 }
 
+// Thicknesses of the body wall layers, in normalised y units.
+struct WallLayers {
+  double skin, fat, muscle;
+};
+WallLayers wall_layers(PhantomVariant variant, double cell) {
+  if (variant == PhantomVariant::ThinTissue) return {cell, cell, std::max(0.03, 2.0 * cell)};
+  return {std::max(0.012, 1.0 * cell), std::max(0.06, 3.0 * cell), std::max(0.03, 2.0 * cell)};
+}
+
 // HU of the noiseless phantom at normalised coordinates (x, y, z) in [0,1]^3 (LPS:
 // x right->left, y anterior->posterior, z inferior->superior). `cell` is the size of one
 // element in normalised y units, so thin layers stay at least about one element thick.
-float phantom_hu(double x, double y, double z, double cell) {
+// The standard variant's arithmetic is the original phantom's, unchanged (tests compare it).
+float phantom_hu(double x, double y, double z, double cell, PhantomVariant variant) {
   constexpr float kAir = -1000, kSkin = 10, kFat = -100, kMuscle = 50, kLiver = 60, kSpleen = 45,
                   kKidney = 30, kBowel = 20, kGas = -700, kAorta = 40, kCancellous = 330, kCortical = 1000,
                   kDisc = 90, kVisceralFat = -90;
+  // Variants: bowel gas pocket, sternal marrow, CT table (carbon-fibre shells over a foam core).
+  constexpr float kPocketGas = -980, kSternalMarrow = 400, kTableShell = 600, kTableFoam = -850;
+  if (variant == PhantomVariant::Table) {
+    // The table top cuts the body's posterior pole: the supine body rests flattened on it.
+    const double top = 0.80, thickness = std::max(0.05, 4.0 * cell), shell = std::max(0.006, 1.0 * cell);
+    if (y >= top && y < top + thickness && std::abs(x - 0.5) < 0.45)
+      return (y < top + shell || y >= top + thickness - shell) ? kTableShell : kTableFoam;
+  }
   // Body: an elliptic cylinder whose width breathes slightly along z.
   const double cx = 0.5, cy = 0.53;
   const double ax = 0.40 * (1.0 - 0.04 * std::cos(6.283 * z)), ay = 0.28 * (1.0 - 0.03 * std::cos(6.283 * z));
   const double u = (x - cx) / ax, v = (y - cy) / ay;
   const double r = std::sqrt(u * u + v * v);
+  const WallLayers wall = wall_layers(variant, cell);
+  const double skin = wall.skin, fat = wall.fat, muscle = wall.muscle;
+  if (variant == PhantomVariant::ThickFat) {
+    // Extra subcutaneous fat outside the standard body, mostly anterior and posterior; the
+    // standard skin becomes fat, the new outer surface is skin.
+    const double extra = std::max(0.10, 5.0 * cell);
+    const double ux = (x - cx) / (ax + 0.6 * extra), vy = (y - cy) / (ay + extra);
+    const double outer = std::sqrt(ux * ux + vy * vy);
+    if (outer > 1.0) return kAir;
+    if ((1.0 - outer) * (ay + extra) < skin) return kSkin;
+    if (r > 1.0) return kFat;
+  }
   if (r > 1.0) return kAir;
   const double depth = (1.0 - r) * ay;  // inward distance, in normalised y units (exact at the poles)
-  const double skin = std::max(0.012, 1.0 * cell), fat = std::max(0.06, 3.0 * cell), muscle = std::max(0.03, 2.0 * cell);
-  if (depth < skin) return kSkin;
+  if (depth < skin) return variant == PhantomVariant::ThickFat ? kFat : kSkin;
   if (depth < skin + fat) return kFat;
+  if (variant == PhantomVariant::ThinTissue && y < cy && std::abs(x - 0.5) < 0.045 && z > 0.35) {
+    // Sternum-like plate right under the thin anterior tissue (where the paper protocol grabs).
+    const double plate = std::max(0.025, 2.0 * cell), inside = depth - skin - fat;
+    if (inside < plate) return (inside < cell || inside >= plate - cell) ? kCortical : kSternalMarrow;
+  }
   // Spine: vertebral body with cortical shell, posterior arch; discs at regular z.
   const double sx = 0.5, sy = 0.70;
   const bool disc = std::fmod(z * 9.0, 1.0) < 0.15;
@@ -62,6 +131,9 @@ float phantom_hu(double x, double y, double z, double cell) {
   if (in_ellipse(x, y, sx - 0.09, sy + 0.07, 0.06, 0.05) || in_ellipse(x, y, sx + 0.09, sy + 0.07, 0.06, 0.05))
     return kMuscle;
   if (depth < skin + fat + muscle) return kMuscle;
+  if (variant == PhantomVariant::AirPockets &&
+      in_ellipsoid(x, y, z, 0.5, cy - ay + skin + fat + muscle + 0.045, 0.5, 0.07, 0.045, 0.12))
+    return kPocketGas;  // right behind the anterior wall, under the grab
   // Organs.
   if (in_ellipse(x, y, sx + 0.035, sy - 0.085, 0.022, 0.022)) return kAorta;  // left of the midline
   if (in_ellipsoid(x, y, z, 0.30, 0.48, 0.78, 0.17, 0.16, 0.35)) return kLiver;            // patient right
@@ -72,12 +144,20 @@ float phantom_hu(double x, double y, double z, double cell) {
   // Bowel loops with gas pockets in the lower and anterior abdomen.
   const double bz = z * 7.0, bx = x * 11.0, by = y * 13.0;
   const double loop = std::sin(bx + 1.3 * std::sin(bz)) * std::sin(by + 0.7 * std::cos(bx)) * std::cos(bz + by);
+  const double gas_above = variant == PhantomVariant::AirPockets ? 0.30 : 0.55;
   // Retroperitoneal fat in front of the spine; bowel loops in front of that.
   if (y < 0.55 && z < 0.75) {
-    if (loop > 0.55) return kGas;
+    if (loop > gas_above) return variant == PhantomVariant::AirPockets ? kPocketGas : kGas;
     if (loop > -0.15) return kBowel;
   }
   return kVisceralFat;
+}
+
+// The anisotropic variant covers more than the standard 300 mm along z: beyond it the anatomy
+// is mirrored (a continuous body), so the normalised z folds back into [0, 1].
+double fold01(double z) {
+  const double m = std::fmod(std::abs(z), 2.0);
+  return m <= 1.0 ? m : 2.0 - m;
 }
 
 }  // namespace
@@ -92,16 +172,38 @@ Volume make_phantom(const PhantomOptions& o) {
     throw Error("phantom noise_hu = " + std::to_string(o.noise_hu) + " is out of range [0, 200]");
   Volume v;
   v.dims = o.dims;
-  v.spacing = {400.0 / o.dims.x, 400.0 / o.dims.y, 300.0 / o.dims.z};
-  v.origin = {-200.0 + 0.5 * v.spacing[0], -200.0 + 0.5 * v.spacing[1], -150.0 + 0.5 * v.spacing[2]};
+  const bool thick_slices = o.variant == PhantomVariant::Anisotropic;
+  if (thick_slices) {
+    // 0.8 : 0.8 : 5 mm like a thick-slice CT, keeping the 400 x 400 mm in-plane field of view,
+    // centred on the origin like the standard phantom.
+    const double in_plane = 400.0 / std::max(o.dims.x, o.dims.y);
+    v.spacing = {in_plane, in_plane, in_plane * 5.0 / 0.8};
+    for (int a = 0; a < 3; ++a) v.origin[a] = 0.5 * v.spacing[a] * (1 - v.dims[a]);
+  } else {
+    v.spacing = {400.0 / o.dims.x, 400.0 / o.dims.y, 300.0 / o.dims.z};
+    v.origin = {-200.0 + 0.5 * v.spacing[0], -200.0 + 0.5 * v.spacing[1], -150.0 + 0.5 * v.spacing[2]};
+  }
   v.hu.resize(v.size());
   const double cell = 1.0 / o.dims.y;
+  // A thick slice is the mean of the anatomy across its thickness (partial volume).
+  constexpr int kSlabSamples = 5;
 #pragma omp parallel for schedule(static)
   for (int z = 0; z < o.dims.z; ++z)
     for (int y = 0; y < o.dims.y; ++y)
       for (int x = 0; x < o.dims.x; ++x) {
         const Index i = v.index(x, y, z);
-        const float base = phantom_hu((x + 0.5) / o.dims.x, (y + 0.5) / o.dims.y, (z + 0.5) / o.dims.z, cell);
+        const double nx = (x + 0.5) / o.dims.x, ny = (y + 0.5) / o.dims.y;
+        float base = 0;
+        if (thick_slices) {
+          double sum = 0;
+          for (int s = 0; s < kSlabSamples; ++s) {
+            const double z_mm = (z + (s + 0.5) / kSlabSamples - 0.5 * o.dims.z) * v.spacing[2];
+            sum += phantom_hu(nx, ny, fold01(0.5 + z_mm / 300.0), cell, o.variant);
+          }
+          base = static_cast<float>(sum / kSlabSamples);
+        } else {
+          base = phantom_hu(nx, ny, (z + 0.5) / o.dims.z, cell, o.variant);
+        }
         v.hu[static_cast<std::size_t>(i)] = base + o.noise_hu * gaussian(o.seed, static_cast<std::uint64_t>(i));
       }
   return v;

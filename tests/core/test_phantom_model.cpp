@@ -46,6 +46,62 @@ TEST(Phantom, FourNonEmptyClassesAndAnteriorAir) {
   for (float h : v.hu) ASSERT_TRUE(std::isfinite(h));
 }
 
+// The variants change the anatomy where their names say, and nothing else about the options.
+TEST(Phantom, VariantsChangeTheAnatomyTheyName) {
+  PhantomOptions o;
+  o.dims = {48, 48, 32};
+  o.noise_hu = 0;
+  const Volume standard = make_phantom(o);
+  const Model ms = build_model(standard, Params{});
+  const Int3 grab = ms.coords(paper_grab_centre(ms));
+  for (PhantomVariant var : all_phantom_variants()) {
+    EXPECT_EQ(parse_phantom_variant(phantom_variant_name(var), "variant"), var);
+    if (var == PhantomVariant::Standard) continue;
+    o.variant = var;
+    const Volume v = make_phantom(o);
+    EXPECT_NE(v.hu, standard.hu) << phantom_variant_name(var);
+    EXPECT_EQ(v.hu, make_phantom(o).hu) << phantom_variant_name(var) << " is not deterministic";
+  }
+  auto line = [](const Volume& v, int y) { return v.at(v.dims.x / 2, y, v.dims.z / 2); };
+  // Thin tissue: skin and fat are 2 elements, then bone right under the paper grab centre.
+  o.variant = PhantomVariant::ThinTissue;
+  const Volume thin = make_phantom(o);
+  const Model mt = build_model(thin, Params{});
+  const Int3 g = mt.coords(paper_grab_centre(mt));
+  EXPECT_EQ(g, grab);
+  EXPECT_LT(line(thin, g.y + 1), 25.0f);
+  EXPECT_GE(line(thin, g.y + 2), 375.0f);
+  EXPECT_GE(line(thin, g.y + 3), 375.0f);
+  // Thick fat: the surface moves anterior and fat (below -50 HU) fills at least 7 elements.
+  o.variant = PhantomVariant::ThickFat;
+  const Volume fat = make_phantom(o);
+  const Model mf = build_model(fat, Params{});
+  const Int3 gf = mf.coords(paper_grab_centre(mf));
+  EXPECT_LT(gf.y, grab.y - 3);
+  for (int y = gf.y + 1; y <= gf.y + 7; ++y) EXPECT_LT(line(fat, y), -50.0f) << "y " << y;
+  // Air pockets: gas right behind the anterior muscle wall under the grab.
+  o.variant = PhantomVariant::AirPockets;
+  const Volume gas = make_phantom(o);
+  int gas_cells = 0;
+  for (int y = grab.y; y < grab.y + 12; ++y) gas_cells += line(gas, y) < -900.0f;
+  EXPECT_GE(gas_cells, 4);
+  // Table: dense shells under the body, touching it (body tissue right above the top shell).
+  o.variant = PhantomVariant::Table;
+  const Volume table = make_phantom(o);
+  int top = -1;  // first row, from the middle down, that is dense across the width and the length
+  for (int y = table.dims.y / 2; y < table.dims.y && top < 0; ++y)
+    if (line(table, y) >= 375.0f && table.at(4, y, 2) >= 375.0f) top = y;
+  ASSERT_GT(top, 0) << "no table";
+  EXPECT_GT(line(table, top - 1), -500.0f) << "the table does not touch the body";
+  // Anisotropic: thick slices (0.8 : 0.8 : 5), same lattice.
+  o.variant = PhantomVariant::Anisotropic;
+  const Volume thick = make_phantom(o);
+  EXPECT_EQ(thick.dims, o.dims);
+  EXPECT_DOUBLE_EQ(thick.spacing[0], thick.spacing[1]);
+  EXPECT_NEAR(thick.spacing[2] / thick.spacing[0], 6.25, 1e-12);
+  EXPECT_THROW(parse_phantom_variant("thin", "--phantom-variant"), Error);
+}
+
 TEST(Phantom, RejectsBadOptions) {
   PhantomOptions o;
   o.dims = {7, 64, 64};

@@ -31,6 +31,17 @@ def pulled(volume, params=None, frames=4, pull=-0.5):
 
 # ---- volumes ------------------------------------------------------------------------------
 
+def test_phantom_variants():
+    standard = hpcm.phantom(SMALL, noise_hu=0)
+    thin = hpcm.phantom(SMALL, noise_hu=0, variant="thin-tissue")
+    assert thin.dims == standard.dims
+    assert not np.array_equal(thin.hu, standard.hu)
+    thick = hpcm.phantom(SMALL, variant="anisotropic")
+    assert thick.spacing[2] / thick.spacing[0] == pytest.approx(6.25)
+    with pytest.raises(hpcm.Error, match="thin-tissue"):
+        hpcm.phantom(SMALL, variant="thin")
+
+
 def test_volume_from_numpy_keeps_index_order_and_geometry():
     a = np.arange(4 * 3 * 2, dtype=np.float32).reshape(4, 3, 2) - 500
     v = hpcm.Volume(a, spacing=(0.5, 0.75, 2.0), origin=(1, 2, 3))

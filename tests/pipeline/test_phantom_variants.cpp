@@ -1,0 +1,146 @@
+// The paper-protocol checks on phantom anatomy the defaults were not tuned on (thin tissue over
+// bone, thick fat, gas pockets, a CT table, thick slices), with the default Params throughout.
+// The checks that hold on every lattice size are asserted on every variant: links in their
+// boxes after every ChainMail stage, fold-free, finite, within the margin, settled after the
+// idle frames, bone velocity 0, and condition A never moving the grab centre away from rest
+// after release (over-relaxation is not monotone, so this is measured here frame by frame).
+// The overshoot / damping / hierarchy checks need lattices >= 48 per axis (docs/tuning.md);
+// they are asserted where the lattice is that large.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <ostream>
+#include <set>
+#include <string>
+
+#include "hpcm/experiment.hpp"
+#include "hpcm/phantom.hpp"
+
+using namespace hpcm;
+
+namespace {
+
+struct VariantCase {
+  PhantomVariant variant;
+  Int3 dims;
+};
+
+// Checks measured to fail with the defaults, and why (docs/tuning.md, "Anatomy the defaults
+// were not tuned on"). They are reported, not asserted to hold; the test fails if one starts to
+// hold, so this list cannot go stale.
+struct KnownFailure {
+  PhantomVariant variant;
+  int nx;  ///< lattice size (x) it was measured on
+  const char* check;
+  const char* why;
+};
+constexpr KnownFailure kKnownFailures[] = {
+    {PhantomVariant::ThinTissue, 48, "C_peak_below_B",
+     "the grab sphere reaches the fat-bone link over the anchored plate, so the tool moves 0.02 cells and B and C "
+     "differ only at noise level"},
+    {PhantomVariant::ThinTissue, 64, "A_no_overshoot",
+     "at 64x64x48 over-relaxation carries the grab centre 0.0017 cells past rest on release, and coming back it moves "
+     "away from rest by 2.8e-5"},
+    {PhantomVariant::AirPockets, 48, "C_hierarchy_peak",
+     "muscle&organ's Peak exceeds skin&fat's: the wall over the gas pocket moves with the skin; the margin is 4 % on "
+     "the standard 48x48x32 phantom"},
+    {PhantomVariant::Table, 48, "C_hierarchy_peak", "muscle&organ's Peak exceeds skin&fat's with the body on the anchored table"},
+    {PhantomVariant::Table, 48, "C_hierarchy_auc", "muscle&organ's AUC exceeds skin&fat's with the body on the anchored table"},
+};
+const KnownFailure* known_failure(PhantomVariant v, int nx, const std::string& check) {
+  for (const auto& k : kKnownFailures)
+    if (k.variant == v && k.nx == nx && check == k.check) return &k;
+  return nullptr;
+}
+
+bool needs_large_lattice(const std::string& spec) {
+  return spec == "8.1" || spec == "8.2" || spec == "8.3" || spec == "8.4";
+}
+
+// Test names in CTest read as the variant, not as the parameter's bytes.
+void PrintTo(const VariantCase& c, std::ostream* os) {
+  *os << phantom_variant_name(c.variant) << " " << c.dims.x << "x" << c.dims.y << "x" << c.dims.z;
+}
+
+class PhantomVariantExperiment : public ::testing::TestWithParam<VariantCase> {};
+
+}  // namespace
+
+TEST_P(PhantomVariantExperiment, ChecksHoldWithDefaults) {
+  const VariantCase vc = GetParam();
+  PhantomOptions o;
+  o.dims = vc.dims;
+  o.variant = vc.variant;
+  const Params p;  // defaults, no per-anatomy tuning
+  const Model m = build_model(make_phantom(o), p);
+  ExperimentOptions opt;
+  opt.settle_frames = 2000;
+  const auto t0 = std::chrono::steady_clock::now();
+  const ExperimentResult r = run_experiment(m, p, opt);
+  const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const bool large = vc.dims.x >= 48 && vc.dims.y >= 48 && vc.dims.z >= 32;
+  std::printf("%s %dx%dx%d: %.1f s\n", phantom_variant_name(vc.variant), vc.dims.x, vc.dims.y, vc.dims.z, secs);
+  ASSERT_EQ(r.conditions.size(), 3u);
+
+  std::set<std::string> asserted;
+  for (const Check& c : r.checks) {
+    const bool assert_it = large || !needs_large_lattice(c.spec) || c.name == "A_no_overshoot" ||
+                           c.name == "C_bone_velocity_zero";
+    std::printf("  %-26s %s %-5s value %-12g threshold %g%s\n", c.name.c_str(), c.spec.c_str(), c.holds ? "holds" : "FAILS",
+                c.value, c.threshold, assert_it ? "" : " (not asserted below 48)");
+    if (!assert_it) continue;
+    asserted.insert(c.name);
+    if (const KnownFailure* k = known_failure(vc.variant, vc.dims.x, c.name)) {
+      std::printf("    known failure: %s\n", k->why);
+      EXPECT_FALSE(c.holds) << c.name << " now holds on " << phantom_variant_name(vc.variant)
+                            << ": remove it from kKnownFailures and from docs/tuning.md";
+      continue;
+    }
+    EXPECT_TRUE(c.holds) << phantom_variant_name(vc.variant) << " " << c.name << ": value " << c.value << ", threshold "
+                         << c.threshold << " (" << c.description << ")";
+  }
+  // The every-lattice checks exist for A, B and C (a renamed check must not pass silently).
+  for (const char* cond : {"A", "B", "C"})
+    for (const char* what : {"_links_in_box", "_fold_free", "_finite", "_within_margin", "_settled"})
+      EXPECT_TRUE(asserted.count(std::string(cond) + what)) << cond << what << " was not reported";
+
+  // Condition A after release, measured here from the grab centre's track: its distance from
+  // rest never grows from one frame to the next.
+  const ConditionResult& a = r.conditions[0];
+  ASSERT_EQ(a.label, "A");
+  ASSERT_GT(static_cast<int>(a.centre_track.size()), r.release_frame);
+  float worst_increase = 0, dist_at_release = 0;
+  for (int f = r.release_frame; f < static_cast<int>(a.centre_track.size()); ++f) {
+    const float prev = norm(a.centre_track[f - 1] - a.centre_rest), cur = norm(a.centre_track[f] - a.centre_rest);
+    if (f == r.release_frame) dist_at_release = prev;
+    worst_increase = std::max(worst_increase, cur - prev);
+  }
+  std::printf("  A: grab centre %.4f from rest at release, largest frame-to-frame increase after it %.3g; pull achieved "
+              "%.3f of %.3f requested\n",
+              dist_at_release, worst_increase, a.max_achieved_offset, a.max_requested_offset);
+  // The pull moved the grab centre (on thin-tissue only 0.02 cells: the tool is limited by the
+  // anchored plate), and as far as the solver reports for the tool.
+  EXPECT_GT(dist_at_release, 0.01f) << "the pull did not move the grab centre";
+  EXPECT_NEAR(dist_at_release, a.max_achieved_offset, 1e-3f);
+  // The reported check (asserted above, unless a known failure) measures the same thing.
+  const auto a_check = std::find_if(r.checks.begin(), r.checks.end(), [](const Check& c) { return c.name == "A_no_overshoot"; });
+  ASSERT_NE(a_check, r.checks.end());
+  EXPECT_NEAR(std::max(0.0f, worst_increase), a_check->value, 1e-7);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Variants, PhantomVariantExperiment,
+    ::testing::Values(VariantCase{PhantomVariant::ThinTissue, {48, 48, 32}}, VariantCase{PhantomVariant::ThickFat, {48, 48, 32}},
+                      VariantCase{PhantomVariant::AirPockets, {48, 48, 32}}, VariantCase{PhantomVariant::Table, {48, 48, 32}},
+                      VariantCase{PhantomVariant::Anisotropic, {48, 48, 32}},
+                      // Thin tissue stays 2 elements thick at any size; at 64 A is measured to overshoot.
+                      VariantCase{PhantomVariant::ThinTissue, {64, 64, 48}}),
+    [](const ::testing::TestParamInfo<VariantCase>& info) {
+      std::string n = phantom_variant_name(info.param.variant);
+      for (char& ch : n)
+        if (ch == '-') ch = '_';
+      return n + "_" + std::to_string(info.param.dims.x) + "x" + std::to_string(info.param.dims.y) + "x" +
+             std::to_string(info.param.dims.z);
+    });
