@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The main job: the paper protocol (conditions A/B/C) on the built-in synthetic phantom.
-# Writes tables, SPEC §8 checks, figures and report.md to ${1:-out/experiment}.
+# Writes tables, the behaviour checks, figures and report.md to ${1:-out/experiment}.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install-deps.sh
