@@ -153,13 +153,17 @@ void SimRunner::reset() {
             scenario_playing_ = false;
             notice(Notice::Kind::Error, e.what());
           }
-          tool_ = {};
-          last_report_ = {};
-          last_pos_.reset();
-          last_prev_.reset();
-          positions_dirty_ = true;
-          ++epoch_;
+          start_over();
         }});
+}
+
+void SimRunner::start_over() {
+  tool_ = {};
+  last_report_ = {};
+  last_pos_.reset();
+  last_prev_.reset();
+  positions_dirty_ = true;
+  ++epoch_;
 }
 
 void SimRunner::set_params(const Params& p) {
@@ -189,12 +193,7 @@ void SimRunner::set_scenario(std::optional<Scenario> s) {
           scenario_ = s;
           sim_->reset();
           make_player();
-          tool_ = {};
-          last_report_ = {};
-          last_pos_.reset();
-          last_prev_.reset();
-          positions_dirty_ = true;
-          ++epoch_;
+          start_over();
           running_ = true;
           budget_ = 0;
           target_frame_ = -1;
@@ -216,12 +215,7 @@ void SimRunner::replace(std::shared_ptr<Model> model, const Params& p, BackendKi
             scenario_.reset();
             notice(Notice::Kind::Error, std::string("scenario dropped: ") + e.what());
           }
-          tool_ = {};
-          last_report_ = {};
-          last_pos_.reset();
-          last_prev_.reset();
-          positions_dirty_ = true;
-          ++epoch_;
+          start_over();
           ++simulation_;
           notice(Notice::Kind::Info, done);
         }});

@@ -168,6 +168,9 @@ class SimRunner {
   void step_frame();
   void publish(bool stepped);
   void make_player();
+  /// After a reset, new data or a new scenario: no tool, no report, positions downloaded again,
+  /// a new epoch for the display.
+  void start_over();
   void rebuild_model_copy();
   void track_tool();
   void announce_limited_pull();

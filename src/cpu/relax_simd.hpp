@@ -143,15 +143,7 @@ float relax_span(const RelaxContext& c, const RelaxRun& r, const bool (&present)
           }
       }
       max_corr_v = vmax(max_corr_v, apply ? corr : zero);
-      // The applied lanes span at most a few columns: mark the first and last applied lane's
-      // columns and any column strictly between them that holds an applied lane.
-      for (unsigned bits = applied; bits;) {
-        const int l = __builtin_ctz(bits);
-        mark(j + l);
-        const int col_end = (((j + l - r.col_base) >> col_shift) + 1) << col_shift;  // first j of the next column
-        const int skip = col_end + r.col_base - j;                                   // lanes before it
-        bits &= skip >= N ? 0u : ~((1u << skip) - 1u);
-      }
+      for (unsigned bits = applied; bits; bits &= bits - 1) mark(j + __builtin_ctz(bits));
     }
     if (conflict)
       for (int l = 0; l < N; ++l)

@@ -4,6 +4,22 @@
 
 namespace hpcm::cpu {
 
+namespace {
+
+/// f(u, k) for every element, u its linear index and k its storage index; planes in parallel.
+template <class F>
+void for_each_element(const Layout& lay, F f) {
+  const int nx = lay.dims.x, ny = lay.dims.y, nz = lay.dims.z;
+#pragma omp parallel for schedule(static)
+  for (int z = 0; z < nz; ++z)
+    for (int y = 0; y < ny; ++y) {
+      const Index i0 = static_cast<Index>(nx) * (y + static_cast<Index>(ny) * z);
+      for (int x = 0; x < nx; ++x) f(static_cast<std::size_t>(i0 + x), static_cast<std::size_t>(lay.at(x, y, z)));
+    }
+}
+
+}  // namespace
+
 void Storage::load(const Model& m, const State& s) {
   lay.init(m.dims);
   const std::size_t n = static_cast<std::size_t>(lay.size), np = n + kPad;
@@ -17,37 +33,21 @@ void Storage::load(const Model& m, const State& s) {
   weight.assign(np, 1.0f);
   tissue.assign(np, 0);
   flags.assign(np, kFixed);  // padding never moves
-  const int nx = m.dims.x, ny = m.dims.y, nz = m.dims.z;
-#pragma omp parallel for schedule(static)
-  for (int z = 0; z < nz; ++z)
-    for (int y = 0; y < ny; ++y)
-      for (int x = 0; x < nx; ++x) {
-        const Index i = m.index(x, y, z);
-        const std::size_t k = static_cast<std::size_t>(lay.at(x, y, z));
-        const std::size_t u = static_cast<std::size_t>(i);
-        for (int a = 0; a < 3; ++a) {
-          p[a][k] = q[a][k] = s.pos[u][a];  // invariant between frames: X- == X
-          v[a][k] = s.vel[u][a];
-          link_tau[a][k] = m.link_tau[m.link_index[a][u]];
-        }
-        weight[k] = 1.0f / (m.tau[u] + 1e-4f);  // as in solver::relax_element
-        tissue[k] = m.tissue[u];
-        flags[k] = (s.flags[u] & kFixed) ? 0 : s.flags[u];  // the FIXED set is given per frame (set_fixed)
-      }
+  for_each_element(lay, [&](std::size_t u, std::size_t k) {
+    for (int a = 0; a < 3; ++a) {
+      p[a][k] = q[a][k] = s.pos[u][a];  // invariant between frames: X- == X
+      v[a][k] = s.vel[u][a];
+      link_tau[a][k] = m.link_tau[m.link_index[a][u]];
+    }
+    weight[k] = 1.0f / (m.tau[u] + 1e-4f);  // as in solver::relax_element
+    tissue[k] = m.tissue[u];
+    flags[k] = (s.flags[u] & kFixed) ? 0 : s.flags[u];  // the FIXED set is given per frame (set_fixed)
+  });
 }
 
 void Storage::store_positions(std::vector<Vec3>& pos) const {
   pos.resize(static_cast<std::size_t>(lay.size));
-  const int nx = lay.dims.x, ny = lay.dims.y, nz = lay.dims.z;
-#pragma omp parallel for schedule(static)
-  for (int z = 0; z < nz; ++z)
-    for (int y = 0; y < ny; ++y) {
-      const Index i0 = static_cast<Index>(nx) * (y + static_cast<Index>(ny) * z);
-      for (int x = 0; x < nx; ++x) {
-        const std::size_t k = static_cast<std::size_t>(lay.at(x, y, z));
-        pos[static_cast<std::size_t>(i0 + x)] = Vec3{p[0][k], p[1][k], p[2][k]};
-      }
-    }
+  for_each_element(lay, [&](std::size_t u, std::size_t k) { pos[u] = Vec3{p[0][k], p[1][k], p[2][k]}; });
 }
 
 void Storage::store_state(State& s) const {
@@ -56,19 +56,11 @@ void Storage::store_state(State& s) const {
   s.vel.resize(n);
   s.time.resize(n);
   s.flags.resize(n);
-  const int nx = lay.dims.x, ny = lay.dims.y, nz = lay.dims.z;
-#pragma omp parallel for schedule(static)
-  for (int z = 0; z < nz; ++z)
-    for (int y = 0; y < ny; ++y) {
-      const Index i0 = static_cast<Index>(nx) * (y + static_cast<Index>(ny) * z);
-      for (int x = 0; x < nx; ++x) {
-        const std::size_t k = static_cast<std::size_t>(lay.at(x, y, z));
-        const std::size_t u = static_cast<std::size_t>(i0 + x);
-        s.vel[u] = Vec3{v[0][k], v[1][k], v[2][k]};
-        s.time[u] = time[k];
-        s.flags[u] = flags[k];
-      }
-    }
+  for_each_element(lay, [&](std::size_t u, std::size_t k) {
+    s.vel[u] = Vec3{v[0][k], v[1][k], v[2][k]};
+    s.time[u] = time[k];
+    s.flags[u] = flags[k];
+  });
 }
 
 }  // namespace hpcm::cpu
