@@ -118,6 +118,7 @@ RelaxContext CpuBackend::relax_context() {
   c.model = m_;
   c.wall = wall_;
   c.threshold = p_.solver.relax_threshold;
+  c.threshold_sq = squared_threshold(c.threshold);
   c.omega = p_.solver.relax_omega;
   return c;
 }

@@ -84,6 +84,15 @@ float relax_element_scalar(const RelaxContext& c, int x, int y, int z) {
   return corr;
 }
 
+float squared_threshold(float threshold) {
+  if (!(threshold > 0.0f)) return 0.0f;
+  // sqrtf is correctly rounded, hence monotone: step from threshold^2 to the boundary.
+  float s = threshold * threshold;
+  while (std::sqrt(s) < threshold) s = std::nextafter(s, solver::kInf);
+  while (s > 0.0f && std::sqrt(std::nextafter(s, 0.0f)) >= threshold) s = std::nextafter(s, 0.0f);
+  return s;
+}
+
 void Relaxation::init(const solver::BrickGrid& grid, RelaxRunKernel kernel) {
   grid_ = grid;
   kernel_ = kernel;

@@ -32,7 +32,13 @@ struct RelaxContext {
   const Model* model;            ///< tolerances for the general rule
   solver::Wall wall;
   float threshold, omega;
+  /// The smallest squared correction whose square root reaches `threshold` (exact: the kernels
+  /// compare squares and take one square root of the largest, with the same outcome).
+  float threshold_sq;
 };
+
+/// threshold_sq for a threshold: the least s with sqrtf(s) >= threshold.
+float squared_threshold(float threshold);
 
 /// One colour's elements [j0, j1) of half h of row (y, z). An element j that moves marks
 /// brick column col_changed[(j - col_base) / col_width].

@@ -32,9 +32,26 @@ float relax_span(const RelaxContext& c, const RelaxRun& r, const bool (&present)
   // Columns of the changed flags are col_width (a power of two) run elements wide.
   int col_shift = 0;
   while ((1 << col_shift) < r.col_width) ++col_shift;
-  auto mark = [&](int j) { r.col_changed[(j - r.col_base) >> col_shift] = 1; };
+  // Everything the loop reads through the contexts, in locals: the byte stores of the marks may
+  // alias any memory, and would otherwise make the compiler reload these on every vector.
+  std::uint8_t* const col_changed = r.col_changed;
+  const int col_base = r.col_base;
+  float* const px = c.p[0];
+  float* const py = c.p[1];
+  float* const pz = c.p[2];
+  const float* const weight = c.weight;
+  const float* const link_tau[3] = {c.link_tau[0], c.link_tau[1], c.link_tau[2]};
+  const std::uint8_t* const flags = c.flags;
+  int last_marked = -1;  // neighbouring lanes share a column: store each mark once
+  auto mark = [&](int j) {
+    const int col = (j - col_base) >> col_shift;
+    if (col != last_marked) {
+      col_changed[col] = 1;
+      last_marked = col;
+    }
+  };
   float max_corr = 0.0f;
-  V max_corr_v = splat<V>(0.0f);
+  V max_sq_v = splat<V>(0.0f);  // largest squared correction applied by the vector lanes
   auto scalar = [&](int j) {
     const float corr = relax_element_scalar(c, 2 * j + h, r.y, r.z);
     if (corr > 0.0f) {
@@ -51,7 +68,7 @@ float relax_span(const RelaxContext& c, const RelaxRun& r, const bool (&present)
   const Index left = oth0 - (h == 0 ? 1 : 0), right = oth0 + (h == 0 ? 0 : 1);
   const V one = splat<V>(1.0f), zero = splat<V>(0.0f);
   const V k08 = splat<V>(0.8f), k098 = splat<V>(0.98f), khalf = splat<V>(0.5f);
-  const V omega = splat<V>(c.omega), threshold = splat<V>(c.threshold);
+  const V omega = splat<V>(c.omega), threshold_sq = splat<V>(c.threshold_sq);
   const V wall_lo[3] = {splat<V>(c.wall.lo[0]), splat<V>(c.wall.lo[1]), splat<V>(c.wall.lo[2])};
   const V wall_hi[3] = {splat<V>(c.wall.hi[0]), splat<V>(c.wall.hi[1]), splat<V>(c.wall.hi[2])};
   const bool plain = c.omega == 1.0f;
@@ -73,18 +90,18 @@ float relax_span(const RelaxContext& c, const RelaxRun& r, const bool (&present)
       constexpr int a = q / 2;
       constexpr bool plus_side = q % 2 == 0;
       const V side = splat<V>(plus_side ? 1.0f : -1.0f);
-      V w = load<V>(c.weight + nk);
+      V w = load<V>(weight + nk);
       [[maybe_unused]] M missing{};
       if constexpr (q == 0) missing = no_left;
       if constexpr (q == 1) missing = no_right;
       if constexpr (q < 2) w = missing ? zero : w;
-      const V p0 = load<V>(c.p[0] + nk), p1 = load<V>(c.p[1] + nk), p2 = load<V>(c.p[2] + nk);
+      const V p0 = load<V>(px + nk), p1 = load<V>(py + nk), p2 = load<V>(pz + nk);
       s0 = s0 + w * (a == 0 ? p0 + side : p0);
       s1 = s1 + w * (a == 1 ? p1 + side : p1);
       s2 = s2 + w * (a == 2 ? p2 + side : p2);
       sw = sw + w;
       // limits_from_tau: min_d = 1 - 0.8 tau, max_d = 1 + tau, shear = min(tau, 0.5 (0.98 - 0.8 tau)).
-      const V tau = load<V>(c.link_tau[a] + owner);
+      const V tau = load<V>(link_tau[a] + owner);
       const V min_d = one - k08 * tau, max_d = one + tau;
       const V cap = khalf * (k098 - k08 * tau);
       const V shear = tau < cap ? tau : cap;
@@ -115,7 +132,7 @@ float relax_span(const RelaxContext& c, const RelaxRun& r, const bool (&present)
     if (AllRows || present[4]) neighbour.template operator()<4>(k - sz, k - sz);
     if (AllRows || present[5]) neighbour.template operator()<5>(k + sz, k);
 
-    const V cur0 = load<V>(c.p[0] + k), cur1 = load<V>(c.p[1] + k), cur2 = load<V>(c.p[2] + k);
+    const V cur0 = load<V>(px + k), cur1 = load<V>(py + k), cur2 = load<V>(pz + k);
     auto step = [&](V s, V cur, V lo, V hi) {
       const V avg = s / sw;
       const V target = plain ? avg : cur + omega * (avg - cur);
@@ -123,33 +140,37 @@ float relax_span(const RelaxContext& c, const RelaxRun& r, const bool (&present)
     };
     const V out0 = step(s0, cur0, lo0, hi0), out1 = step(s1, cur1, lo1, hi1), out2 = step(s2, cur2, lo2, hi2);
     const V d0 = out0 - cur0, d1 = out1 - cur1, d2 = out2 - cur2;
-    const V corr = vsqrt<V>(d0 * d0 + d1 * d1 + d2 * d2);
+    // corr >= threshold exactly when corr^2 >= threshold_sq (RelaxContext::threshold_sq).
+    const V corr_sq = d0 * d0 + d1 * d1 + d2 * d2;
     const M in_run = lane_index < splat<V>(static_cast<float>(i1 - j));
     const M boxes_meet = ~(lo0 > hi0) & ~(lo1 > hi1) & ~(lo2 > hi2);
-    const M free = ((load_bytes<V>(c.flags + k) & static_cast<int>(kFixed)) == 0) & in_run;
-    const M apply = boxes_meet & free & (corr >= threshold) & (corr != zero);
+    const M free = ((load_bytes<V>(flags + k) & static_cast<int>(kFixed)) == 0) & in_run;
+    const M apply = boxes_meet & free & (corr_sq >= threshold_sq) & (corr_sq != zero);
     const unsigned applied = lane_bits<V>(apply), conflict = lane_bits<V>(free & ~boxes_meet);
     if (applied) {
       if (j + N <= i1) {  // a full vector: every lane is this run's
-        store<V>(c.p[0] + k, apply ? out0 : cur0);
-        store<V>(c.p[1] + k, apply ? out1 : cur1);
-        store<V>(c.p[2] + k, apply ? out2 : cur2);
+        store<V>(px + k, apply ? out0 : cur0);
+        store<V>(py + k, apply ? out1 : cur1);
+        store<V>(pz + k, apply ? out2 : cur2);
       } else {  // the masked tail: lanes past the run may belong to another thread's run
         for (int l = 0; l < N; ++l)
           if (applied >> l & 1u) {
-            c.p[0][k + l] = out0[l];
-            c.p[1][k + l] = out1[l];
-            c.p[2][k + l] = out2[l];
+            px[k + l] = out0[l];
+            py[k + l] = out1[l];
+            pz[k + l] = out2[l];
           }
       }
-      max_corr_v = vmax(max_corr_v, apply ? corr : zero);
+      max_sq_v = vmax(max_sq_v, apply ? corr_sq : zero);
       for (unsigned bits = applied; bits; bits &= bits - 1) mark(j + __builtin_ctz(bits));
     }
     if (conflict)
       for (int l = 0; l < N; ++l)
         if (conflict >> l & 1u) scalar(j + l);
   }
-  for (int l = 0; l < N; ++l) max_corr = std::max(max_corr, max_corr_v[l]);
+  // sqrtf is monotone, so the root of the largest square is the largest root.
+  float max_sq = 0.0f;
+  for (int l = 0; l < N; ++l) max_sq = std::max(max_sq, max_sq_v[l]);
+  max_corr = std::max(max_corr, std::sqrt(max_sq));
   return max_corr;
 }
 
