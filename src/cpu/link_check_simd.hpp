@@ -37,7 +37,7 @@ int link_check_row(const Storage& st, const solver::Wall& wall, int h, int y, in
   const Layout& L = st.lay;
   const Index k0 = L.row_start(h, y, z);
   const Index ko = L.row_start(1 - h, y, z) + (h == 0 ? 0 : 1);  // +x neighbour of j
-  const Index sy = L.width[h], sz = static_cast<Index>(L.width[h]) * L.dims.y;
+  const Index sy = L.width[h], sz = L.plane[h];
   const bool has_y = y + 1 < L.dims.y, has_z = z + 1 < L.dims.z;
   const V wlo[3] = {splat<V>(wall.lo[0]), splat<V>(wall.lo[1]), splat<V>(wall.lo[2])};
   const V whi[3] = {splat<V>(wall.hi[0]), splat<V>(wall.hi[1]), splat<V>(wall.hi[2])};

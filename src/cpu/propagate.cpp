@@ -13,7 +13,9 @@ using namespace solver;
 void Propagation::init(const Model& m, const BrickGrid& grid) {
   m_ = &m;
   grid_ = grid;
-  final_.assign(static_cast<std::size_t>(m.size()), 0);
+  Layout lay;
+  lay.init(m.dims);
+  final_.assign(static_cast<std::size_t>(lay.span), 0);  // storage order
   reached_.clear();
   buckets_.clear();
   delta_ = bucket_width(m);

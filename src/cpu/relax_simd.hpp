@@ -27,7 +27,7 @@ float relax_span(const RelaxContext& c, const RelaxRun& r, const bool (&present)
   constexpr int N = sizeof(V) / sizeof(float);
   using M = Mask<V>;
   const Layout& L = *c.lay;
-  const int nx = L.dims.x, ny = L.dims.y;
+  const int nx = L.dims.x;
   const int h = r.h;
   // Columns of the changed flags are col_width (a power of two) run elements wide.
   int col_shift = 0;
@@ -63,7 +63,7 @@ float relax_span(const RelaxContext& c, const RelaxRun& r, const bool (&present)
   const V minus_inf = splat<V>(-solver::kInf), plus_inf = splat<V>(solver::kInf);
   const Index own0 = L.row_start(h, r.y, r.z);
   const Index oth0 = L.row_start(1 - h, r.y, r.z);
-  const Index sy = L.width[h], sz = static_cast<Index>(L.width[h]) * ny;
+  const Index sy = L.width[h], sz = L.plane[h];
   // -x neighbour of element j: other half, index j - 1 (h = 0) or j (h = 1); +x: j or j + 1.
   const Index left = oth0 - (h == 0 ? 1 : 0), right = oth0 + (h == 0 ? 0 : 1);
   const V one = splat<V>(1.0f), zero = splat<V>(0.0f);

@@ -22,17 +22,20 @@ void for_each_element(const Layout& lay, F f) {
 
 void Storage::load(const Model& m, const State& s) {
   lay.init(m.dims);
-  const std::size_t n = static_cast<std::size_t>(lay.size), np = n + kPad;
+  const std::size_t np = static_cast<std::size_t>(lay.span) + kPad;
+  // Array starts 7 cache lines apart (distinct sets for 9 arrays and more).
+  int lines = 0;
+  auto next = [&lines] { return 7 * lines++; };
   for (int a = 0; a < 3; ++a) {
-    p[a].assign(np, 0.0f);
-    q[a].assign(np, 0.0f);
-    v[a].assign(np, 0.0f);
-    link_tau[a].assign(np, 0.0f);
+    p[a].assign(np, 0.0f, next());
+    q[a].assign(np, 0.0f, next());
+    v[a].assign(np, 0.0f, next());
+    link_tau[a].assign(np, 0.0f, next());
   }
-  time.assign(np, std::numeric_limits<float>::infinity());
-  weight.assign(np, 1.0f);
-  tissue.assign(np, 0);
-  flags.assign(np, kFixed);  // padding never moves
+  time.assign(np, std::numeric_limits<float>::infinity(), next());
+  weight.assign(np, 1.0f, next());
+  tissue.assign(np, 0, next());
+  flags.assign(np, kFixed, next());  // padding and stagger gaps never move
   for_each_element(lay, [&](std::size_t u, std::size_t k) {
     for (int a = 0; a < 3; ++a) {
       p[a][k] = q[a][k] = s.pos[u][a];  // invariant between frames: X- == X
