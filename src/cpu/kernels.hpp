@@ -1,6 +1,6 @@
 #pragma once
-// The CPU's SIMD kernels and their run-time choice: AVX2 where the CPU has it, SSE2 (every
-// x86-64 CPU) otherwise. Both give the same bits as the scalar rules they mirror.
+// The CPU's SIMD kernels and their run-time choice: AVX-512 where the CPU has it, else AVX2,
+// else SSE2 (every x86-64 CPU). All give the same bits as the scalar rules they mirror.
 #include <string>
 #include <vector>
 
@@ -38,13 +38,17 @@ struct SimdKernels {
   RelaxRunKernel relax = nullptr;
   LayerRowKernel layer = nullptr;
   LinkRowKernel link_check = nullptr;
-  const char* name = "";  ///< "avx2" or "sse2"
+  const char* name = "";  ///< "avx512", "avx2" or "sse2"
 };
 
 SimdKernels kernels_sse2();
 SimdKernels kernels_avx2();
-/// The best kernels this CPU runs; `force` ("sse2", "avx2", or empty) is for tests and
-/// benchmarks. A forced AVX2 on a CPU without it throws hpcm::Error.
+SimdKernels kernels_avx512();
+/// Whether this CPU runs the AVX2 / AVX-512 kernels.
+bool cpu_has_avx2();
+bool cpu_has_avx512();
+/// The best kernels this CPU runs; `force` ("sse2", "avx2", "avx512", or empty) is for tests
+/// and benchmarks. Forcing kernels this CPU cannot run throws hpcm::Error.
 SimdKernels select_kernels(const std::string& force);
 
 }  // namespace hpcm::cpu
