@@ -193,9 +193,11 @@ void register_bench(CLI::App& app) {
     const DeviceProbe probe = last->backend().probe(o->probe_reps);
 
     // ---- print (Table 3 layout) ----
-    std::printf("hpcm bench: %s, %dx%dx%d = %lld elements, backend %s%s%s, %d frames per condition%s\n", source.c_str(),
+    const std::string kernels = last->backend().kernels();
+    std::printf("hpcm bench: %s, %dx%dx%d = %lld elements, backend %s%s%s%s%s, %d frames per condition%s\n", source.c_str(),
                 model.dims.x, model.dims.y, model.dims.z, static_cast<long long>(n), backend_name(bk),
-                probe.available ? ": " : "", probe.available ? probe.device.c_str() : "", o->frames,
+                probe.available ? ": " : "", probe.available ? probe.device.c_str() : "",
+                kernels.empty() ? "" : (" (" + kernels + " kernels)").c_str(), "", o->frames,
                 o->speeds ? ", speed reductions on" : "");
     std::printf("Table 3: stage times per frame, median over frames (mean in brackets), ms\n");
     std::printf("%-18s %18s %18s %18s %18s %14s\n", "condition", "ChainMail", "Inertia", "Snapshot", "SimTotal", "elements/s");
@@ -276,6 +278,7 @@ void register_bench(CLI::App& app) {
     js["dims"] = {model.dims.x, model.dims.y, model.dims.z};
     js["elements"] = n;
     js["backend"] = backend_name(bk);
+    if (!kernels.empty()) js["kernels"] = kernels;
     js["frames"] = o->frames;
     js["warmup_frames"] = o->warmup;
     js["speed_reductions"] = o->speeds;

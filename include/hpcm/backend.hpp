@@ -69,6 +69,9 @@ class Backend {
   /// as many device-to-device copies of the positions, in the same run. The dense passes
   /// advance the state (call it at the end of a benchmark). CPU: returns available = false.
   virtual DeviceProbe probe(int /*reps*/) { return {}; }
+  /// The instruction set the backend's kernels use (CPU: "avx512", "avx2" or "sse2"; empty
+  /// where that does not apply).
+  virtual std::string kernels() const { return {}; }
 
   virtual void download(State& s) = 0;
   virtual void download_positions(std::vector<Vec3>& pos) = 0;

@@ -44,7 +44,7 @@ void CpuBackend::load(const Model& m, const Params& p, const State& s) {
   const int threads = default_thread_count();
   if (!pool_ || pool_->threads() != threads) pool_ = std::make_unique<WorkerPool>(threads);
   propagation_.init(m, grid_);
-  const SimdKernels kernels = select_kernels(forced_kernel_);
+  const SimdKernels kernels = select_kernels(chosen_kernels(forced_kernel_));
   kernel_name_ = kernels.name;
   relaxation_.init(grid_, kernels.relax);
   layer_.init(grid_, kernels.layer);

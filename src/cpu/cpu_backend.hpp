@@ -43,10 +43,10 @@ class CpuBackend final : public Backend {
   void download_positions(std::vector<Vec3>& pos) override { st_.store_positions(pos); }
   Vec3 position(Index i) override { return st_.position(i); }
 
-  /// The SIMD kernels in use ("avx2" or "sse2").
-  const char* kernels() const { return kernel_name_; }
-  /// Forces the SIMD kernels ("sse2", "avx2"; empty: the best this CPU runs) from the next
-  /// load() on. For tests and benchmarks.
+  /// The SIMD kernels in use ("avx512", "avx2" or "sse2").
+  std::string kernels() const override { return kernel_name_; }
+  /// Forces the SIMD kernels ("sse2", "avx2", "avx512"; empty: the environment variable
+  /// HPCM_CPU_KERNELS if set, else the best this CPU runs) from the next load() on.
   void force_kernels(const std::string& name) { forced_kernel_ = name; }
   int threads() const { return pool_ ? pool_->threads() : 1; }
   /// Bytes per element of the backend's arrays (the model's table and per-brick data excluded).

@@ -1,5 +1,7 @@
 #include "cpu/kernels.hpp"
 
+#include <cstdlib>
+
 namespace hpcm::cpu {
 
 bool cpu_has_avx2() { return __builtin_cpu_supports("avx2"); }
@@ -20,6 +22,16 @@ SimdKernels select_kernels(const std::string& force) {
     return kernels_avx512();
   }
   throw Error("CPU kernels: '" + force + "' is not one of sse2|avx2|avx512");
+}
+
+std::string chosen_kernels(const std::string& force) {
+  if (!force.empty()) return force;
+  const char* env = std::getenv("HPCM_CPU_KERNELS");
+  if (!env || !*env) return {};
+  const std::string v = env;
+  if (v != "sse2" && v != "avx2" && v != "avx512")
+    throw Error("HPCM_CPU_KERNELS='" + v + "' is not one of sse2|avx2|avx512 (unset it to use the best this CPU runs)");
+  return v;
 }
 
 }  // namespace hpcm::cpu

@@ -50,5 +50,8 @@ bool cpu_has_avx512();
 /// The best kernels this CPU runs; `force` ("sse2", "avx2", "avx512", or empty) is for tests
 /// and benchmarks. Forcing kernels this CPU cannot run throws hpcm::Error.
 SimdKernels select_kernels(const std::string& force);
+/// `force` if not empty, else the value of HPCM_CPU_KERNELS (throws hpcm::Error naming the
+/// variable when it is set to something other than sse2|avx2|avx512), else empty.
+std::string chosen_kernels(const std::string& force);
 
 }  // namespace hpcm::cpu

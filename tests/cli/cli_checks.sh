@@ -46,4 +46,14 @@ grep -q "of the requested 40 lattice units" "$OUT/far.log" || fail "impossible p
 
 if "$HPCM" run --frames -3 --out "$OUT/bad" > "$OUT/bad.log" 2>&1; then fail "--frames -3 accepted"; fi
 grep -q -- "--frames" "$OUT/bad.log" || fail "--frames -3 message does not name the option: $(cat "$OUT/bad.log")"
+
+# The CPU kernels can be chosen by HPCM_CPU_KERNELS (benchmarks compare the instruction sets);
+# the bench names the ones it used, and a value that is not an instruction set is an error.
+HPCM_CPU_KERNELS=sse2 "$HPCM" bench --phantom 16,16,12 --frames 3 --out "$OUT/k" > "$OUT/k.log" 2>&1 \
+  || fail "bench with HPCM_CPU_KERNELS=sse2 exited non-zero: $(cat "$OUT/k.log")"
+grep -q "backend cpu (sse2 kernels)" "$OUT/k.log" || fail "bench does not name the sse2 kernels: $(head -1 "$OUT/k.log")"
+if HPCM_CPU_KERNELS=neon "$HPCM" run --phantom 16,16,12 --frames 2 --out "$OUT/kbad" > "$OUT/kbad.log" 2>&1; then
+  fail "HPCM_CPU_KERNELS=neon accepted"
+fi
+grep -q "HPCM_CPU_KERNELS='neon' is not one of sse2|avx2|avx512" "$OUT/kbad.log" || fail "HPCM_CPU_KERNELS message: $(cat "$OUT/kbad.log")"
 echo "PASS"
