@@ -104,20 +104,36 @@ ToolLimit tool_limit(const Model& m, const std::vector<Index>& grabbed, const st
   if (static_cast<Index>(anchored.size()) != m.size()) throw Error("tool_limit: anchor flags do not match the model");
   ToolLimit lim;
   if (grabbed.empty()) return lim;
-  Search s{m, anchored, std::vector<std::uint8_t>(static_cast<std::size_t>(m.size()), 0),
-           std::vector<double>(static_cast<std::size_t>(m.size()), kInfD), {}, margin};
-  for (Index g : grabbed) s.grabbed[static_cast<std::size_t>(g)] = 1;
-  std::vector<double> start(grabbed.size());
+  // Six independent searches (three axes, two directions): they run on the available threads,
+  // each with its own distance array, so the result does not depend on the thread count.
+  double bound[3][2];  // [axis][0: upper bound of the offset, 1: lower bound, negated]
+#pragma omp parallel
+  {
+    Search s{m, anchored, std::vector<std::uint8_t>(static_cast<std::size_t>(m.size()), 0), {}, {}, margin};
+    bool ready = false;
+#pragma omp for schedule(dynamic, 1)
+    for (int task = 0; task < 6; ++task) {
+      if (!ready) {
+        s.dist.assign(static_cast<std::size_t>(m.size()), kInfD);
+        for (Index g : grabbed) s.grabbed[static_cast<std::size_t>(g)] = 1;
+        ready = true;
+      }
+      const int b = task / 2;
+      const bool upper = task % 2 == 0;
+      std::vector<double> start(grabbed.size());
+      // Upper bound: offset <= slack(anchor or wall -> g) - d_g, searched backwards from g.
+      // Lower bound: offset >= -(d_g + slack(g -> anchor or wall)), searched forwards from g.
+      for (std::size_t k = 0; k < grabbed.size(); ++k) {
+        const double d_g = static_cast<double>(origin[k][b]) - m.coords(grabbed[k])[b];
+        start[k] = upper ? -d_g : d_g;
+      }
+      bound[b][upper ? 0 : 1] = s.run(grabbed, start, b, !upper);
+    }
+  }
   for (int b = 0; b < 3; ++b) {
-    // Upper bound: offset <= slack(anchor or wall -> g) - d_g, searched backwards from g.
-    for (std::size_t k = 0; k < grabbed.size(); ++k) start[k] = -(static_cast<double>(origin[k][b]) - m.coords(grabbed[k])[b]);
-    const double up = s.run(grabbed, start, b, false);
-    // Lower bound: offset >= -(d_g + slack(g -> anchor or wall)), searched forwards from g.
-    for (std::size_t k = 0; k < grabbed.size(); ++k) start[k] = static_cast<double>(origin[k][b]) - m.coords(grabbed[k])[b];
-    const double down = s.run(grabbed, start, b, true);
     // Rounded inwards so that a clamped offset is met after float rounding of the targets.
-    lim.hi[b] = std::nextafter(static_cast<float>(std::min(up, 1e30)), -INFINITY);
-    lim.lo[b] = std::nextafter(static_cast<float>(-std::min(down, 1e30)), INFINITY);
+    lim.hi[b] = std::nextafter(static_cast<float>(std::min(bound[b][0], 1e30)), -INFINITY);
+    lim.lo[b] = std::nextafter(static_cast<float>(-std::min(bound[b][1], 1e30)), INFINITY);
   }
   return lim;
 }

@@ -10,6 +10,11 @@
 #include <cmath>
 #include <cstdio>
 
+#include <omp.h>
+
+#include <utility>
+
+#include "hpcm/phantom.hpp"
 #include "hpcm/simulation.hpp"
 #include "hpcm/state.hpp"
 #include "solver_test_util.hpp"
@@ -96,3 +101,28 @@ INSTANTIATE_TEST_SUITE_P(Modes, ToolLimit,
                          });
 
 }  // namespace
+
+// The six searches of the tool limit (three axes, two directions) run on the available threads:
+// the limits must not depend on how many there are. A grab inside the phantom's soft tissue,
+// so every search has work to do.
+TEST(ToolLimitSearch, SameLimitsOnOneAndTwoThreads) {
+  const Params p;
+  PhantomOptions o;
+  o.dims = {40, 40, 24};
+  const Model m = build_model(make_phantom(o), p);
+  auto limits = [&](int threads) {
+    omp_set_num_threads(threads);
+    Simulation sim(m, p);
+    sim.grab(m.index(20, 8, 12), 2.0f);
+    return std::pair<Vec3, Vec3>{sim.tool_limit_lo(), sim.tool_limit_hi()};
+  };
+  const int before = omp_get_max_threads();
+  const auto one = limits(1), two = limits(2);
+  omp_set_num_threads(before);
+  for (int b = 0; b < 3; ++b) {
+    EXPECT_EQ(one.first[b], two.first[b]) << "axis " << b;
+    EXPECT_EQ(one.second[b], two.second[b]) << "axis " << b;
+    EXPECT_LT(one.first[b], 0.0f);
+    EXPECT_GT(one.second[b], 0.0f);
+  }
+}
