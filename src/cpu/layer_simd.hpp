@@ -39,23 +39,42 @@ void layer_row(Storage& st, const dynamics::LayerConstants& k, const LayerRow& r
   // Brick columns are col_width (a power of two) row elements wide: shifts, not divisions.
   int col_shift = 0;
   while ((1 << col_shift) < r.col_width) ++col_shift;
-  auto column = [&](int jl) { return (jl - r.col_base) >> col_shift; };
+  // Pointers in locals: the byte stores of the column flags may alias any memory, and would
+  // otherwise make the compiler reload them for every vector.
+  const int col_base = r.col_base;
+  auto column = [col_base, col_shift](int jl) { return (jl - col_base) >> col_shift; };
+  float* p_[3] = {st.p[0].data(), st.p[1].data(), st.p[2].data()};
+  float* q_[3] = {st.q[0].data(), st.q[1].data(), st.q[2].data()};
+  float* v_[3] = {st.v[0].data(), st.v[1].data(), st.v[2].data()};
+  const std::uint8_t* const tissue = st.tissue.data();
+  const std::uint8_t* const flags = st.flags.data();
+  const std::uint8_t* const col_asleep = r.col_asleep;
+  std::uint8_t* const col_velocity = r.col_velocity;
+  std::uint8_t* const col_moved = r.col_moved;
+  float* const col_speed = r.col_speed;
+  // The largest speed of the column being walked, written when the walk leaves it.
+  int speed_col = -1;
+  float speed_max = 0.0f;
+  auto flush_speed = [&] {
+    if (speed_col >= 0) col_speed[speed_col] = col_speed[speed_col] > speed_max ? col_speed[speed_col] : speed_max;
+  };
+  int velocity_col = -1, moved_col = -1;  // last column flagged: neighbouring lanes share one
   for (int j = r.j0; j < r.j1; j += N) {
     const Index e = k0 + j;
     const int count = std::min(N, r.j1 - j);
     const M in_row = lane < splat<V>(static_cast<float>(count));
-    const M t = load_bytes<V>(st.tissue.data() + e);
-    M fixed = (load_bytes<V>(st.flags.data() + e) & static_cast<int>(kFixed)) != 0;
+    const M t = load_bytes<V>(tissue + e);
+    M fixed = (load_bytes<V>(flags + e) & static_cast<int>(kFixed)) != 0;
     bool any_asleep = false;  // a sleeping brick's elements get no dynamics this frame
-    for (int c = column(j); c <= column(j + count - 1); ++c) any_asleep |= r.col_asleep[c] != 0;
+    for (int c = column(j); c <= column(j + count - 1); ++c) any_asleep |= col_asleep[c] != 0;
     if (any_asleep)
       for (int l = 0; l < count; ++l)
-        if (r.col_asleep[column(j + l)]) fixed[l] = -1;
+        if (col_asleep[column(j + l)]) fixed[l] = -1;
     V post[3], pre[3], v[3];
     for (int a = 0; a < 3; ++a) {
-      post[a] = load<V>(st.p[a].data() + e);
-      pre[a] = load<V>(st.q[a].data() + e);
-      v[a] = load<V>(st.v[a].data() + e);
+      post[a] = load<V>(p_[a] + e);
+      pre[a] = load<V>(q_[a] + e);
+      v[a] = load<V>(v_[a] + e);
     }
     // 1. FIXED / massless (bone), and condition A: no dynamics.
     const M dynamic = ~fixed & (by_tissue<V>(t, k.inv_mass) != zero) & (k.mode != 0 ? M{} - 1 : M{});
@@ -82,8 +101,13 @@ void layer_row(Storage& st, const dynamics::LayerConstants& k, const LayerRow& r
     for (int a = 0; a < 3; ++a) nv[a] = fast ? nv[a] * f : nv[a];
     for (unsigned bits = lane_bits<V>(dynamic & in_row); bits; bits &= bits - 1) {
       const int l = __builtin_ctz(bits);
-      float& cs = r.col_speed[column(j + l)];
-      cs = cs > speed[l] ? cs : speed[l];
+      const int c = column(j + l);
+      if (c != speed_col) {
+        flush_speed();
+        speed_col = c;
+        speed_max = col_speed[c];
+      }
+      speed_max = speed_max > speed[l] ? speed_max : speed[l];
     }
     // 6. position update.
     const V g = beta * by_tissue<V>(t, k.rho);
@@ -97,23 +121,29 @@ void layer_row(Storage& st, const dynamics::LayerConstants& k, const LayerRow& r
     }
     if (count == N) {
       for (int a = 0; a < 3; ++a) {
-        store<V>(st.v[a].data() + e, nv[a]);
-        store<V>(st.p[a].data() + e, out[a]);
-        store<V>(st.q[a].data() + e, out[a]);  // frame-end snapshot: next frame's X-
+        store<V>(v_[a] + e, nv[a]);
+        store<V>(p_[a] + e, out[a]);
+        store<V>(q_[a] + e, out[a]);  // frame-end snapshot: next frame's X-
       }
     } else {
       for (int l = 0; l < count; ++l)
         for (int a = 0; a < 3; ++a) {
-          st.v[a][static_cast<std::size_t>(e + l)] = nv[a][l];
-          st.p[a][static_cast<std::size_t>(e + l)] = out[a][l];
-          st.q[a][static_cast<std::size_t>(e + l)] = out[a][l];
+          v_[a][e + l] = nv[a][l];
+          p_[a][e + l] = out[a][l];
+          q_[a][e + l] = out[a][l];
         }
     }
     const M has_v = (nv[0] != zero) | (nv[1] != zero) | (nv[2] != zero);
     const M changed = (out[0] != post[0]) | (out[1] != post[1]) | (out[2] != post[2]);
     const unsigned with_v = lane_bits<V>(has_v & in_row), moved = lane_bits<V>(changed & in_row);
-    for (unsigned bits = with_v; bits; bits &= bits - 1) r.col_velocity[column(j + __builtin_ctz(bits))] = 1;
-    for (unsigned bits = moved; bits; bits &= bits - 1) r.col_moved[column(j + __builtin_ctz(bits))] = 1;
+    for (unsigned bits = with_v; bits; bits &= bits - 1) {
+      const int c = column(j + __builtin_ctz(bits));
+      if (c != velocity_col) col_velocity[velocity_col = c] = 1;
+    }
+    for (unsigned bits = moved; bits; bits &= bits - 1) {
+      const int c = column(j + __builtin_ctz(bits));
+      if (c != moved_col) col_moved[moved_col = c] = 1;
+    }
     if (speeds) {
       const V sp = norm3<V>(out[0] - pre[0], out[1] - pre[1], out[2] - pre[2]);
       for (int l = 0; l < count; ++l) {
@@ -124,6 +154,7 @@ void layer_row(Storage& st, const dynamics::LayerConstants& k, const LayerRow& r
       }
     }
   }
+  flush_speed();
 }
 
 }  // namespace hpcm::cpu::simd
