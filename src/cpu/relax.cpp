@@ -43,11 +43,11 @@ float relax_element_scalar(const RelaxContext& c, int x, int y, int z) {
     const Nb& n = nb[q];
     const float w = c.weight[n.k];
     const Vec3 pn{c.p[0][n.k], c.p[1][n.k], c.p[2][n.k]};
-    Vec3 prop = pn;
-    prop[n.axis] += static_cast<float>(n.side);
-    sx += w * prop.x;
-    s_y += w * prop.y;
-    s_z += w * prop.z;
+    Vec3 off = pn - cur;  // the proposal's offset from cur (see solver::relax_element)
+    off[n.axis] += static_cast<float>(n.side);
+    sx += w * off.x;
+    s_y += w * off.y;
+    s_z += w * off.z;
     sw += w;
     const LinkLimits lim = limits_from_tau(c.link_tau[n.axis][n.link_owner], 1.0f);
     for (int b = 0; b < 3; ++b) {
@@ -59,10 +59,8 @@ float relax_element_scalar(const RelaxContext& c, int x, int y, int z) {
   }
   Vec3 out;
   if (!(lo[0] > hi[0] || lo[1] > hi[1] || lo[2] > hi[2])) {
-    const Vec3 avg{sx / sw, s_y / sw, s_z / sw};
-    const Vec3 target = c.omega == 1.0f ? avg
-                                        : Vec3{cur.x + c.omega * (avg.x - cur.x), cur.y + c.omega * (avg.y - cur.y),
-                                               cur.z + c.omega * (avg.z - cur.z)};
+    const Vec3 target{solver::relax_coordinate(cur.x, sx / sw, c.omega), solver::relax_coordinate(cur.y, s_y / sw, c.omega),
+                      solver::relax_coordinate(cur.z, s_z / sw, c.omega)};
     for (int b = 0; b < 3; ++b) out[b] = clampf(target[b], lo[b], hi[b]);
   } else {
     // Conflicting boxes: the general rule decides (earliest neighbour's box, then the wall).

@@ -2,9 +2,10 @@
 // The relaxation rule over a run of one colour, N elements at a time (included by
 // relax_simd_sse2.cpp with 4-wide and by relax_simd_avx2.cpp with 8-wide vectors; each file is
 // compiled for its instruction set). Lane by lane these are the floating-point operations of
-// relax_element_scalar in the same order: weights times proposals summed over the neighbours
-// -x, +x, -y, +y, -z, +z from zero, the box limits rebuilt from the link's tolerance exactly as
+// relax_element_scalar in the same order: weights times the proposals' offsets from the element
+// summed over the neighbours -x, +x, -y, +y, -z, +z from zero, the box limits rebuilt from the link's tolerance exactly as
 // limits_from_tau does, max/min for the intersection, one IEEE division, the over-relaxed step
+// kept below twice the correction (solver::relax_coordinate, nextafterf on the bit pattern)
 // and the clamp. No fused multiply-add (the build uses -ffp-contract=off, and the AVX2 file
 // does not enable FMA). Lanes whose boxes do not intersect, and the border elements of the
 // lattice, go to the scalar rule. The last vector of a run is masked; its loads may run past
@@ -68,16 +69,16 @@ float relax_span(const RelaxContext& c, const RelaxRun& r, const bool (&present)
   const Index left = oth0 - (h == 0 ? 1 : 0), right = oth0 + (h == 0 ? 0 : 1);
   const V one = splat<V>(1.0f), zero = splat<V>(0.0f);
   const V k08 = splat<V>(0.8f), k098 = splat<V>(0.98f), khalf = splat<V>(0.5f);
-  const V omega = splat<V>(c.omega), threshold_sq = splat<V>(c.threshold_sq);
+  const V omega = splat<V>(c.omega), limit_factor = splat<V>(0.5f * (2.0f + c.omega)), threshold_sq = splat<V>(c.threshold_sq);
   const V wall_lo[3] = {splat<V>(c.wall.lo[0]), splat<V>(c.wall.lo[1]), splat<V>(c.wall.lo[2])};
   const V wall_hi[3] = {splat<V>(c.wall.hi[0]), splat<V>(c.wall.hi[1]), splat<V>(c.wall.hi[2])};
-  const bool plain = c.omega == 1.0f;
   V lane_index;
   for (int l = 0; l < N; ++l) lane_index[l] = static_cast<float>(l);
   const V x_first = splat<V>(0.0f), x_last = splat<V>(static_cast<float>(nx - 1));
 
   for (int j = i0; j < i1; j += N) {
     const Index k = own0 + j;
+    const V cur0 = load<V>(px + k), cur1 = load<V>(py + k), cur2 = load<V>(pz + k);
     V s0 = zero, s1 = zero, s2 = zero, sw = zero;
     V lo0 = wall_lo[0], lo1 = wall_lo[1], lo2 = wall_lo[2];
     V hi0 = wall_hi[0], hi1 = wall_hi[1], hi2 = wall_hi[2];
@@ -96,9 +97,10 @@ float relax_span(const RelaxContext& c, const RelaxRun& r, const bool (&present)
       if constexpr (q == 1) missing = no_right;
       if constexpr (q < 2) w = missing ? zero : w;
       const V p0 = load<V>(px + nk), p1 = load<V>(py + nk), p2 = load<V>(pz + nk);
-      s0 = s0 + w * (a == 0 ? p0 + side : p0);
-      s1 = s1 + w * (a == 1 ? p1 + side : p1);
-      s2 = s2 + w * (a == 2 ? p2 + side : p2);
+      const V o0 = p0 - cur0, o1 = p1 - cur1, o2 = p2 - cur2;  // offsets from the element
+      s0 = s0 + w * (a == 0 ? o0 + side : o0);
+      s1 = s1 + w * (a == 1 ? o1 + side : o1);
+      s2 = s2 + w * (a == 2 ? o2 + side : o2);
       sw = sw + w;
       // limits_from_tau: min_d = 1 - 0.8 tau, max_d = 1 + tau, shear = min(tau, 0.5 (0.98 - 0.8 tau)).
       const V tau = load<V>(link_tau[a] + owner);
@@ -132,10 +134,19 @@ float relax_span(const RelaxContext& c, const RelaxRun& r, const bool (&present)
     if (AllRows || present[4]) neighbour.template operator()<4>(k - sz, k - sz);
     if (AllRows || present[5]) neighbour.template operator()<5>(k + sz, k);
 
-    const V cur0 = load<V>(px + k), cur1 = load<V>(py + k), cur2 = load<V>(pz + k);
     auto step = [&](V s, V cur, V lo, V hi) {
-      const V avg = s / sw;
-      const V target = plain ? avg : cur + omega * (avg - cur);
+      // solver::relax_coordinate: where rounding lengthens the step to (2 + omega) / 2 times the
+      // correction q, one float step back toward cur (nextafterf on the bit pattern: minus one
+      // where that moves toward zero).
+      const V q = s / sw;
+      const V t = cur + omega * q, d = t - cur;
+      const M back = ((q > zero) ? (d >= limit_factor * q) : (d <= limit_factor * q)) & (q != zero);
+      const M toward_zero = (t > cur) == (t > zero);
+      M bits;
+      std::memcpy(&bits, &t, sizeof bits);
+      bits = back ? (toward_zero ? bits - 1 : bits + 1) : bits;
+      V target;
+      std::memcpy(&target, &bits, sizeof target);
       return vmax(lo, vmin(hi, target));  // clampf, valid where lo <= hi
     };
     const V out0 = step(s0, cur0, lo0, hi0), out1 = step(s1, cur1, lo1, hi1), out2 = step(s2, cur2, lo2, hi2);

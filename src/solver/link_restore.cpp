@@ -110,11 +110,28 @@ void LinkRestorer::restore(const Model& m, const BrickGrid& grid, const std::vec
     pass_seeds_.insert(pass_seeds_.end(), changed_.begin(), changed_.end());
     pass(m, pos, b, 0, wall.lo[b], wall.hi[b], false, pass_seeds_);
     pass(m, pos, b, 1, wall.lo[b], wall.hi[b], true, pass_seeds_);
+    // The midpoints, then lower and raise once more from them (copy 0): rounding a midpoint can
+    // leave a link a float step and a half outside its box; these passes move such elements by
+    // a float step or so and leave every link within half a float step (restore.hpp).
+    // Seeded with every changed element and its neighbours (either end of a link may have to
+    // move); a seed listed twice is queued once.
+    auto changed_and_neighbours = [&] {
+      pass_seeds_ = changed_;
+      for (Index e : changed_) {
+        const Int3 c = m.coords(e);
+        for_each_face_neighbour(m, c.x, c.y, c.z, e, [&](Index n, int, int, const LinkLimits&) { pass_seeds_.push_back(n); });
+      }
+    };
+    for (Index e : changed_) val_[0][e] = val_[1][e] = 0.5f * (val_[0][e] + val_[1][e]);
+    changed_and_neighbours();
+    pass(m, pos, b, 0, wall.lo[b], wall.hi[b], true, pass_seeds_);
+    changed_and_neighbours();
+    pass(m, pos, b, 0, wall.lo[b], wall.hi[b], false, pass_seeds_);
     for (Index e : changed_) {
       mark_[e] = 0;
-      const float mid = 0.5f * (val_[0][e] + val_[1][e]);
-      if (mid == pos.position(e)[b]) continue;
-      pos.set_coordinate(e, b, mid);
+      const float restored = val_[0][e];
+      if (restored == pos.position(e)[b]) continue;
+      pos.set_coordinate(e, b, restored);
       moved[grid.brick_of_index(e)] = 1;
       if (!moved_flag_[e]) {
         moved_flag_[e] = 1;

@@ -133,27 +133,49 @@ HPCM_HD inline bool propagate_in_bucket(long long e, Vec3 p0, const Neighbour* n
   return false;
 }
 
+/// The relaxed coordinate: cur + omega * q, where q is the correction toward the weighted
+/// average, rounded to nearest unless rounding lengthens the step to (2 + omega) / 2 times q or
+/// more (halfway from the requested over-relaxation to the stability limit 2); then the float
+/// next to it toward cur. Rounding a 1.85-times step of a few float steps to the float grid
+/// could otherwise make it a 2-times step, a mirror image through the average (2 ulps -> -2 ulps
+/// and back, for ever). With every applied step below 2 times q, each one lowers the
+/// relaxation's energy, so the relaxation always comes to rest (docs/solver.md).
+HPCM_HD inline float relax_coordinate(float cur, float q, float omega) {
+  const float t = cur + omega * q;
+  const float d = t - cur;
+  const float limit = (0.5f * (2.0f + omega)) * q;
+  if (q > 0.0f ? d >= limit : d <= limit) {
+    if (q != 0.0f) return nextafterf(t, cur);
+  }
+  return t;
+}
+
 /// Relaxation rule: (over-relaxed step toward the) weighted average of the neighbours'
-/// proposals p_n + X0_e - X0_n with
-/// weight 1/(tau_n + 1e-4), then clamped into all neighbours' boxes (never creates a
-/// violation against the neighbours' current positions).
+/// proposals p_n + X0_e - X0_n with weight 1/(tau_n + 1e-4), then clamped into all neighbours'
+/// boxes (never creates a violation against the neighbours' current positions).
 /// `omega` over-relaxes the step from the current position `cur` toward the average
 /// (successive over-relaxation; omega = 1 is plain Gauss-Seidel).
+///
+/// The average is taken of the proposals' offsets from `cur` (p_n + X0_e - X0_n - cur), not of
+/// the absolute proposals: the same number in exact arithmetic, but a weighted sum of absolute
+/// coordinates carries a rounding error proportional to the coordinates (several float steps
+/// at 128 and beyond), which the over-relaxation amplifies past the relaxation threshold and
+/// which then keeps an equilibrium lattice moving for ever. The offsets are small and
+/// p_n - cur is exact, so the step is exact to a few ulps of itself; the new position never
+/// becomes a 2-times step by rounding (relax_coordinate). docs/solver.md, "Relaxation arithmetic".
 HPCM_HD inline Vec3 relax_element(const Neighbour* nb, int count, Vec3 cur, float omega, const Wall& wall) {
   float sx = 0, sy = 0, sz = 0, sw = 0;
   for (int k = 0; k < count; ++k) {
     const float w = 1.0f / (nb[k].tau + 1e-4f);
-    Vec3 prop = nb[k].p;
-    prop[nb[k].axis] += static_cast<float>(nb[k].side);
-    sx += w * prop.x;
-    sy += w * prop.y;
-    sz += w * prop.z;
+    Vec3 off = nb[k].p - cur;
+    off[nb[k].axis] += static_cast<float>(nb[k].side);
+    sx += w * off.x;
+    sy += w * off.y;
+    sz += w * off.z;
     sw += w;
   }
-  const Vec3 avg{sx / sw, sy / sw, sz / sw};
-  const Vec3 target = omega == 1.0f ? avg
-                                    : Vec3{cur.x + omega * (avg.x - cur.x), cur.y + omega * (avg.y - cur.y),
-                                           cur.z + omega * (avg.z - cur.z)};
+  const Vec3 target{relax_coordinate(cur.x, sx / sw, omega), relax_coordinate(cur.y, sy / sw, omega),
+                    relax_coordinate(cur.z, sz / sw, omega)};
   return clamp_into_boxes(target, nb, count, (1u << count) - 1u, wall);
 }
 
