@@ -194,10 +194,10 @@ void register_bench(CLI::App& app) {
 
     // ---- print (Table 3 layout) ----
     const std::string kernels = last->backend().kernels();
-    std::printf("hpcm bench: %s, %dx%dx%d = %lld elements, backend %s%s%s%s%s, %d frames per condition%s\n", source.c_str(),
+    const std::string kernels_note = kernels.empty() ? "" : " (" + kernels + " kernels)";
+    std::printf("hpcm bench: %s, %dx%dx%d = %lld elements, backend %s%s%s%s, %d frames per condition%s\n", source.c_str(),
                 model.dims.x, model.dims.y, model.dims.z, static_cast<long long>(n), backend_name(bk),
-                probe.available ? ": " : "", probe.available ? probe.device.c_str() : "",
-                kernels.empty() ? "" : (" (" + kernels + " kernels)").c_str(), "", o->frames,
+                probe.available ? ": " : "", probe.available ? probe.device.c_str() : "", kernels_note.c_str(), o->frames,
                 o->speeds ? ", speed reductions on" : "");
     std::printf("Table 3: stage times per frame, median over frames (mean in brackets), ms\n");
     std::printf("%-18s %18s %18s %18s %18s %14s\n", "condition", "ChainMail", "Inertia", "Snapshot", "SimTotal", "elements/s");

@@ -28,6 +28,7 @@ void CpuBackend::load(const Model& m, const Params& p, const State& s) {
   p_ = p;
   k_ = dynamics::make_constants(p.dynamics, m.dims);
   wall_ = solver::make_wall(m.dims, p.dynamics.margin);
+  relax_threshold_sq_ = squared_threshold(p.solver.relax_threshold);
   st_.load(m, s);
   grid_.init(m.dims, p.solver.brick_size);
   const std::size_t nb = static_cast<std::size_t>(grid_.count);
@@ -43,7 +44,7 @@ void CpuBackend::load(const Model& m, const Params& p, const State& s) {
   targets_.clear();
   const int threads = default_thread_count();
   if (!pool_ || pool_->threads() != threads) pool_ = std::make_unique<WorkerPool>(threads);
-  propagation_.init(m, grid_);
+  propagation_.init(m, st_.lay, grid_);
   const SimdKernels kernels = select_kernels(chosen_kernels(forced_kernel_));
   kernel_name_ = kernels.name;
   relaxation_.init(grid_, kernels.relax);
@@ -58,6 +59,7 @@ void CpuBackend::set_params(const Params& p) {
   p_ = p;
   k_ = dynamics::make_constants(p.dynamics, m_->dims);
   wall_ = solver::make_wall(m_->dims, p.dynamics.margin);
+  relax_threshold_sq_ = squared_threshold(p.solver.relax_threshold);
   mark_all(unchecked_);  // a new margin may put elements outside the wall
   if (bricks_changed) {
     State s;
@@ -118,7 +120,7 @@ RelaxContext CpuBackend::relax_context() {
   c.model = m_;
   c.wall = wall_;
   c.threshold = p_.solver.relax_threshold;
-  c.threshold_sq = squared_threshold(c.threshold);
+  c.threshold_sq = relax_threshold_sq_;
   c.omega = p_.solver.relax_omega;
   return c;
 }

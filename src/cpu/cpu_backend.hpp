@@ -60,6 +60,7 @@ class CpuBackend final : public Backend {
   Params p_;
   dynamics::LayerConstants k_{};
   solver::Wall wall_;
+  float relax_threshold_sq_ = 0.0f;  ///< squared_threshold(p_.solver.relax_threshold)
   Storage st_;
   solver::BrickGrid grid_;
   std::vector<Index> fixed_;

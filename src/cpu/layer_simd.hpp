@@ -1,6 +1,6 @@
 #pragma once
-// The velocity layer over one row, N elements at a time (included by simd_sse2.cpp and
-// simd_avx2.cpp). Lane by lane these are the floating-point operations of
+// The velocity layer over one row, N elements at a time (through kernel_table.hpp, in each
+// simd_*.cpp). Lane by lane these are the floating-point operations of
 // dynamics::velocity_update in the same order, with its branches as lane masks: FIXED,
 // massless or condition A; the dead zone on |dX|; simple or viscoelastic update; the magnitude
 // clamp or the rest threshold; the position step; the boundary clamp. The speeds for the

@@ -1,8 +1,8 @@
 #pragma once
 // The vector filter of the link check (cpu/link_check.cpp), N elements at a time: included by
-// simd_sse2.cpp (4-wide) and simd_avx2.cpp (8-wide). It only decides which elements the exact
+// each simd_*.cpp (4-, 8- or 16-wide). It only decides which elements the exact
 // scalar check looks at, so any lane it flags is checked again exactly; the arithmetic is
-// link_violation's, lane by lane, so both widths flag the same elements.
+// link_violation's, lane by lane, so every width flags the same elements.
 #include <vector>
 
 #include "cpu/kernels.hpp"

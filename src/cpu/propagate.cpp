@@ -10,11 +10,9 @@ namespace hpcm::cpu {
 
 using namespace solver;
 
-void Propagation::init(const Model& m, const BrickGrid& grid) {
+void Propagation::init(const Model& m, const Layout& lay, const BrickGrid& grid) {
   m_ = &m;
   grid_ = grid;
-  Layout lay;
-  lay.init(m.dims);
   final_.assign(static_cast<std::size_t>(lay.span), 0);  // storage order
   reached_.clear();
   buckets_.clear();

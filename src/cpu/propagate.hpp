@@ -20,7 +20,7 @@ namespace hpcm::cpu {
 
 class Propagation {
  public:
-  void init(const Model& m, const solver::BrickGrid& grid);
+  void init(const Model& m, const Layout& lay, const solver::BrickGrid& grid);
   /// One wave; FIXED elements are at their targets in st.p, everything else starts at st.q
   /// (X-). Marks the bricks it moves in `touched` and `hot`.
   PropagateStats run(Storage& st, const std::vector<Index>& fixed, const solver::Wall& wall, int max_sweeps,

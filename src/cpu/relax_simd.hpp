@@ -1,13 +1,13 @@
 #pragma once
-// The relaxation rule over a run of one colour, N elements at a time (included by
-// relax_simd_sse2.cpp with 4-wide and by relax_simd_avx2.cpp with 8-wide vectors; each file is
-// compiled for its instruction set). Lane by lane these are the floating-point operations of
-// relax_element_scalar in the same order: weights times the proposals' offsets from the element
-// summed over the neighbours -x, +x, -y, +y, -z, +z from zero, the box limits rebuilt from the link's tolerance exactly as
-// limits_from_tau does, max/min for the intersection, one IEEE division, the over-relaxed step
-// kept below twice the correction (solver::relax_coordinate, nextafterf on the bit pattern)
-// and the clamp. No fused multiply-add (the build uses -ffp-contract=off, and the AVX2 file
-// does not enable FMA). Lanes whose boxes do not intersect, and the border elements of the
+// The relaxation rule over a run of one colour, N elements at a time (through kernel_table.hpp,
+// in simd_sse2.cpp, simd_avx2.cpp and simd_avx512.cpp with 4-, 8- and 16-wide vectors; each file
+// is compiled for its instruction set). Lane by lane these are the floating-point operations of
+// relax_element_scalar in the same order: weights times the proposals' offsets from the
+// element summed over the neighbours -x, +x, -y, +y, -z, +z from zero, the box limits rebuilt
+// from the link's tolerance exactly as limits_from_tau does, max/min for the intersection, one
+// IEEE division, the over-relaxed step kept below twice the correction
+// (solver::relax_coordinate, nextafterf on the bit pattern) and the clamp. No fused
+// multiply-add (the build uses -ffp-contract=off, and the wide files do not enable FMA). Lanes whose boxes do not intersect, and the border elements of the
 // lattice, go to the scalar rule. The last vector of a run is masked; its loads may run past
 // the run into the storage's padding.
 #include <algorithm>

@@ -24,23 +24,10 @@ inline unsigned lane_bits<f8>(i8 m) {
 }
 }  // namespace hpcm::cpu::simd
 
-#include "cpu/layer_simd.hpp"
-#include "cpu/link_check_simd.hpp"
-#include "cpu/relax_simd.hpp"
+#include "cpu/kernel_table.hpp"
 
 namespace hpcm::cpu {
 
-SimdKernels kernels_avx2() {
-  SimdKernels k;
-  k.relax = [](const RelaxContext& c, const RelaxRun& r) { return simd::relax_run<simd::f8>(c, r); };
-  k.layer = [](Storage& st, const dynamics::LayerConstants& lc, const LayerRow& row, SpeedStats* sp) {
-    simd::layer_row<simd::f8>(st, lc, row, sp);
-  };
-  k.link_check = [](const Storage& st, const solver::Wall& w, int h, int y, int z, int j0, int j1, std::vector<int>& out) {
-    return simd::link_check_row<simd::f8>(st, w, h, y, z, j0, j1, out);
-  };
-  k.name = "avx2";
-  return k;
-}
+SimdKernels kernels_avx2() { return simd::kernel_table<simd::f8>("avx2"); }
 
 }  // namespace hpcm::cpu

@@ -1,5 +1,7 @@
 #include "solver/tool_limit.hpp"
 
+#include <omp.h>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -107,17 +109,14 @@ ToolLimit tool_limit(const Model& m, const std::vector<Index>& grabbed, const st
   // Six independent searches (three axes, two directions): they run on the available threads,
   // each with its own distance array, so the result does not depend on the thread count.
   double bound[3][2];  // [axis][0: upper bound of the offset, 1: lower bound, negated]
-#pragma omp parallel
+  const int threads = std::min(6, omp_get_max_threads());  // no search state for idle threads
+#pragma omp parallel num_threads(threads)
   {
-    Search s{m, anchored, std::vector<std::uint8_t>(static_cast<std::size_t>(m.size()), 0), {}, {}, margin};
-    bool ready = false;
+    Search s{m, anchored, std::vector<std::uint8_t>(static_cast<std::size_t>(m.size()), 0),
+             std::vector<double>(static_cast<std::size_t>(m.size()), kInfD), {}, margin};
+    for (Index g : grabbed) s.grabbed[static_cast<std::size_t>(g)] = 1;
 #pragma omp for schedule(dynamic, 1)
     for (int task = 0; task < 6; ++task) {
-      if (!ready) {
-        s.dist.assign(static_cast<std::size_t>(m.size()), kInfD);
-        for (Index g : grabbed) s.grabbed[static_cast<std::size_t>(g)] = 1;
-        ready = true;
-      }
       const int b = task / 2;
       const bool upper = task % 2 == 0;
       std::vector<double> start(grabbed.size());
