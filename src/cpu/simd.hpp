@@ -44,4 +44,21 @@ V vsqrt(V a);
 template <class V>
 unsigned lane_bits(Mask<V> m);
 
+/// Calls f(column, lanes) once for every column of the row that holds a lane set in `bits`,
+/// with the set lanes of that column: lane l is element `first + l` of the row, counted from
+/// the row's column origin, and columns are 2^col_shift elements wide. Once per column rather
+/// than once per lane: with every lane set, one call for each column instead of N, and a loop
+/// whose trip count the branch predictor learns.
+template <class F>
+inline void for_each_column(unsigned bits, int first, int col_shift, int n, F&& f) {
+  while (bits) {
+    const int lane = __builtin_ctz(bits);
+    const int col = (first + lane) >> col_shift;
+    const int next = ((col + 1) << col_shift) - first;  // first lane of the next column
+    const unsigned col_lanes = next >= n ? bits : bits & ((1u << next) - 1u);
+    f(col, col_lanes);
+    bits &= ~col_lanes;
+  }
+}
+
 }  // namespace hpcm::cpu::simd
