@@ -52,13 +52,6 @@ void layer_row(Storage& st, const dynamics::LayerConstants& k, const LayerRow& r
   std::uint8_t* const col_velocity = r.col_velocity;
   std::uint8_t* const col_moved = r.col_moved;
   float* const col_speed = r.col_speed;
-  // The largest speed of the column being walked, written when the walk leaves it.
-  int speed_col = -1;
-  float speed_max = 0.0f;
-  auto flush_speed = [&] {
-    if (speed_col >= 0) col_speed[speed_col] = col_speed[speed_col] > speed_max ? col_speed[speed_col] : speed_max;
-  };
-  int velocity_col = -1, moved_col = -1;  // last column flagged: neighbouring lanes share one
   for (int j = r.j0; j < r.j1; j += N) {
     const Index e = k0 + j;
     const int count = std::min(N, r.j1 - j);
@@ -99,16 +92,16 @@ void layer_row(Storage& st, const dynamics::LayerConstants& k, const LayerRow& r
     const M fast = speed > v_max;
     const V f = v_max / speed;
     for (int a = 0; a < 3; ++a) nv[a] = fast ? nv[a] * f : nv[a];
-    for (unsigned bits = lane_bits<V>(dynamic & in_row); bits; bits &= bits - 1) {
-      const int l = __builtin_ctz(bits);
-      const int c = column(j + l);
-      if (c != speed_col) {
-        flush_speed();
-        speed_col = c;
-        speed_max = col_speed[c];
-      }
-      speed_max = speed_max > speed[l] ? speed_max : speed[l];
-    }
+    // The column maxima of the speeds of the dynamic lanes (speeds are >= 0: the other lanes
+    // enter as 0 and change no maximum).
+    const M dynamic_in_row = dynamic & in_row;
+    const V speed_dynamic = dynamic_in_row ? speed : zero;
+    for_each_column(lane_bits<V>(dynamic_in_row), j - col_base, col_shift, N, [&](int c, unsigned lanes) {
+      float m = col_speed[c];
+      for (int l = __builtin_ctz(lanes), last = 31 - __builtin_clz(lanes); l <= last; ++l)
+        m = m > speed_dynamic[l] ? m : speed_dynamic[l];
+      col_speed[c] = m;
+    });
     // 6. position update.
     const V g = beta * by_tissue<V>(t, k.rho);
     V out[3];
@@ -136,14 +129,8 @@ void layer_row(Storage& st, const dynamics::LayerConstants& k, const LayerRow& r
     const M has_v = (nv[0] != zero) | (nv[1] != zero) | (nv[2] != zero);
     const M changed = (out[0] != post[0]) | (out[1] != post[1]) | (out[2] != post[2]);
     const unsigned with_v = lane_bits<V>(has_v & in_row), moved = lane_bits<V>(changed & in_row);
-    for (unsigned bits = with_v; bits; bits &= bits - 1) {
-      const int c = column(j + __builtin_ctz(bits));
-      if (c != velocity_col) col_velocity[velocity_col = c] = 1;
-    }
-    for (unsigned bits = moved; bits; bits &= bits - 1) {
-      const int c = column(j + __builtin_ctz(bits));
-      if (c != moved_col) col_moved[moved_col = c] = 1;
-    }
+    for_each_column(with_v, j - col_base, col_shift, N, [&](int c, unsigned) { col_velocity[c] = 1; });
+    for_each_column(moved, j - col_base, col_shift, N, [&](int c, unsigned) { col_moved[c] = 1; });
     if (speeds) {
       const V sp = norm3<V>(out[0] - pre[0], out[1] - pre[1], out[2] - pre[2]);
       for (int l = 0; l < count; ++l) {
@@ -154,7 +141,6 @@ void layer_row(Storage& st, const dynamics::LayerConstants& k, const LayerRow& r
       }
     }
   }
-  flush_speed();
 }
 
 }  // namespace hpcm::cpu::simd
