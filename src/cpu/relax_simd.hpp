@@ -172,7 +172,7 @@ float relax_span(const RelaxContext& c, const RelaxRun& r, const bool (&present)
           }
       }
       max_sq_v = vmax(max_sq_v, apply ? corr_sq : zero);
-      for_each_column(applied, j - col_base, col_shift, N, [&](int col, unsigned) { col_changed[col] = 1; });
+      mark_columns(applied, j - col_base, col_shift, N, col_changed);
     }
     if (conflict)
       for (int l = 0; l < N; ++l)

@@ -61,4 +61,20 @@ inline void for_each_column(unsigned bits, int first, int col_shift, int n, F&& 
   }
 }
 
+/// Sets cols[c] = 1 for every column c that holds a lane set in `bits` (as for_each_column).
+/// Vectors that start on a column boundary and hold whole columns (the common case: runs start
+/// at a brick column and vectors are a power of two wide) take a loop of fixed length.
+inline void mark_columns(unsigned bits, int first, int col_shift, int n, std::uint8_t* cols) {
+  if (!bits) return;
+  const int width = 1 << col_shift;
+  if ((first & (width - 1)) == 0 && width <= n && width < 32) {
+    const unsigned column_lanes = (1u << width) - 1u;
+    std::uint8_t* const c0 = cols + (first >> col_shift);
+    for (int c = 0; c < n >> col_shift; ++c)
+      if ((bits >> (c * width)) & column_lanes) c0[c] = 1;
+    return;
+  }
+  for_each_column(bits, first, col_shift, n, [cols](int c, unsigned) { cols[c] = 1; });
+}
+
 }  // namespace hpcm::cpu::simd
