@@ -29,7 +29,7 @@ inline V link_excess(const V (&p)[3], const V (&q)[3], V tau, int a) {
 
 /// Elements j in [j0, j1) of half h of row (y, z) (all with a +x neighbour); appends those whose
 /// +x, +y or +z link or whose wall distance may exceed the restoration tolerance to `flagged`.
-/// Returns the first j it did not look at (the caller checks the rest exactly).
+/// Returns j1 (the caller checks the elements from there on exactly).
 template <class V>
 int link_check_row(const Storage& st, const solver::Wall& wall, int h, int y, int z, int j0, int j1,
                    std::vector<int>& flagged) {
@@ -42,8 +42,10 @@ int link_check_row(const Storage& st, const solver::Wall& wall, int h, int y, in
   const V wlo[3] = {splat<V>(wall.lo[0]), splat<V>(wall.lo[1]), splat<V>(wall.lo[2])};
   const V whi[3] = {splat<V>(wall.hi[0]), splat<V>(wall.hi[1]), splat<V>(wall.hi[2])};
   const V tol = splat<V>(solver::kRestoreTolerance);
+  V lane;
+  for (int l = 0; l < N; ++l) lane[l] = static_cast<float>(l);
   int j = j0;
-  for (; j + N <= j1; j += N) {
+  for (; j < j1; j += N) {  // the last vector is masked; its loads may run into the padding
     const Index k = k0 + j;
     const V p[3] = {load<V>(st.p[0].data() + k), load<V>(st.p[1].data() + k), load<V>(st.p[2].data() + k)};
     V worst = splat<V>(0.0f);
@@ -55,9 +57,10 @@ int link_check_row(const Storage& st, const solver::Wall& wall, int h, int y, in
     link(ko + j, 0);
     if (has_y) link(k + sy, 1);
     if (has_z) link(k + sz, 2);
-    for (unsigned bits = lane_bits<V>(worst > tol); bits; bits &= bits - 1) flagged.push_back(j + __builtin_ctz(bits));
+    const auto in_run = lane < splat<V>(static_cast<float>(j1 - j));
+    for (unsigned bits = lane_bits<V>((worst > tol) & in_run); bits; bits &= bits - 1) flagged.push_back(j + __builtin_ctz(bits));
   }
-  return j;
+  return j1;
 }
 
 }  // namespace hpcm::cpu::simd
