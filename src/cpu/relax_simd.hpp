@@ -134,22 +134,32 @@ float relax_span(const RelaxContext& c, const RelaxRun& r, const bool (&present)
     if (AllRows || present[4]) neighbour.template operator()<4>(k - sz, k - sz);
     if (AllRows || present[5]) neighbour.template operator()<5>(k + sz, k);
 
-    auto step = [&](V s, V cur, V lo, V hi) {
-      // solver::relax_coordinate: where rounding lengthens the step to (2 + omega) / 2 times the
-      // correction q, one float step back toward cur (nextafterf on the bit pattern: minus one
-      // where that moves toward zero).
+    // solver::relax_coordinate: where rounding lengthens the step to (2 + omega) / 2 times the
+    // correction q, one float step back toward cur (nextafterf on the bit pattern: minus one
+    // where that moves toward zero). That is rare, so the adjustment runs only for vectors
+    // that need it.
+    auto relaxed = [&](V s, V cur, V& t) {
       const V q = s / sw;
-      const V t = cur + omega * q, d = t - cur;
-      const M back = ((q > zero) ? (d >= limit_factor * q) : (d <= limit_factor * q)) & (q != zero);
+      t = cur + omega * q;
+      const V d = t - cur;
+      return ((q > zero) ? (d >= limit_factor * q) : (d <= limit_factor * q)) & (q != zero);
+    };
+    auto step_back = [&](V& t, V cur, M back) {
       const M toward_zero = (t > cur) == (t > zero);
       M bits;
       std::memcpy(&bits, &t, sizeof bits);
       bits = back ? (toward_zero ? bits - 1 : bits + 1) : bits;
-      V target;
-      std::memcpy(&target, &bits, sizeof target);
-      return vmax(lo, vmin(hi, target));  // clampf, valid where lo <= hi
+      std::memcpy(&t, &bits, sizeof t);
     };
-    const V out0 = step(s0, cur0, lo0, hi0), out1 = step(s1, cur1, lo1, hi1), out2 = step(s2, cur2, lo2, hi2);
+    V t0, t1, t2;
+    const M back0 = relaxed(s0, cur0, t0), back1 = relaxed(s1, cur1, t1), back2 = relaxed(s2, cur2, t2);
+    if (lane_bits<V>(back0 | back1 | back2)) [[unlikely]] {
+      step_back(t0, cur0, back0);
+      step_back(t1, cur1, back1);
+      step_back(t2, cur2, back2);
+    }
+    // clampf, valid where lo <= hi
+    const V out0 = vmax(lo0, vmin(hi0, t0)), out1 = vmax(lo1, vmin(hi1, t1)), out2 = vmax(lo2, vmin(hi2, t2));
     const V d0 = out0 - cur0, d1 = out1 - cur1, d2 = out2 - cur2;
     // corr >= threshold exactly when corr^2 >= threshold_sq (RelaxContext::threshold_sq).
     const V corr_sq = d0 * d0 + d1 * d1 + d2 * d2;
