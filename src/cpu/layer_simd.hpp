@@ -118,13 +118,13 @@ void layer_row(Storage& st, const dynamics::LayerConstants& k, const LayerRow& r
         store<V>(p_[a] + e, out[a]);
         store<V>(q_[a] + e, out[a]);  // frame-end snapshot: next frame's X-
       }
-    } else {
-      for (int l = 0; l < count; ++l)
-        for (int a = 0; a < 3; ++a) {
-          v_[a][e + l] = nv[a][l];
-          p_[a][e + l] = out[a][l];
-          q_[a][e + l] = out[a][l];
-        }
+    } else {  // the row's last vector: lanes past it are not this row's
+      const unsigned row_lanes = (1u << count) - 1u;
+      for (int a = 0; a < 3; ++a) {
+        store_lanes<V>(v_[a] + e, nv[a], row_lanes);
+        store_lanes<V>(p_[a] + e, out[a], row_lanes);
+        store_lanes<V>(q_[a] + e, out[a], row_lanes);
+      }
     }
     const M has_v = (nv[0] != zero) | (nv[1] != zero) | (nv[2] != zero);
     const M changed = (out[0] != post[0]) | (out[1] != post[1]) | (out[2] != post[2]);

@@ -174,12 +174,9 @@ float relax_span(const RelaxContext& c, const RelaxRun& r, const bool (&present)
         store<V>(py + k, apply ? out1 : cur1);
         store<V>(pz + k, apply ? out2 : cur2);
       } else {  // the masked tail: lanes past the run may belong to another thread's run
-        for (int l = 0; l < N; ++l)
-          if (applied >> l & 1u) {
-            px[k + l] = out0[l];
-            py[k + l] = out1[l];
-            pz[k + l] = out2[l];
-          }
+        store_lanes<V>(px + k, out0, applied);
+        store_lanes<V>(py + k, out1, applied);
+        store_lanes<V>(pz + k, out2, applied);
       }
       max_sq_v = vmax(max_sq_v, apply ? corr_sq : zero);
       mark_columns(applied, j - col_base, col_shift, N, col_changed);

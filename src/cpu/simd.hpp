@@ -43,6 +43,10 @@ V vsqrt(V a);
 /// Bit l set when lane l of the mask is set.
 template <class V>
 unsigned lane_bits(Mask<V> m);
+/// Stores the lanes of v whose bit is set in `bits` to p[l]; the other floats at p are neither
+/// read nor written (a masked store where the instruction set has one).
+template <class V>
+void store_lanes(float* p, V v, unsigned bits);
 
 /// Calls f(column, lanes) once for every column of the row that holds a lane set in `bits`,
 /// with the set lanes of that column: lane l is element `first + l` of the row, counted from

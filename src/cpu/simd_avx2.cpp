@@ -22,6 +22,12 @@ template <>
 inline unsigned lane_bits<f8>(i8 m) {
   return static_cast<unsigned>(_mm256_movemask_ps(reinterpret_cast<__m256>(m)));
 }
+template <>
+inline void store_lanes<f8>(float* p, f8 v, unsigned bits) {
+  const i8 lane_bit = {1, 2, 4, 8, 16, 32, 64, 128};
+  const i8 mask = (lane_bit & static_cast<int>(bits)) != 0;
+  _mm256_maskstore_ps(p, reinterpret_cast<__m256i>(mask), reinterpret_cast<__m256>(v));
+}
 }  // namespace hpcm::cpu::simd
 
 #include "cpu/kernel_table.hpp"

@@ -26,6 +26,10 @@ template <>
 inline unsigned lane_bits<f16>(i16 m) {
   return static_cast<unsigned>(_mm512_movepi32_mask(reinterpret_cast<__m512i>(m)));
 }
+template <>
+inline void store_lanes<f16>(float* p, f16 v, unsigned bits) {
+  _mm512_mask_storeu_ps(p, static_cast<__mmask16>(bits), reinterpret_cast<__m512>(v));
+}
 }  // namespace hpcm::cpu::simd
 
 #include "cpu/kernel_table.hpp"

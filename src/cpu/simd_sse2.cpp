@@ -24,6 +24,11 @@ template <>
 inline unsigned lane_bits<f4>(i4 m) {
   return static_cast<unsigned>(_mm_movemask_ps(reinterpret_cast<__m128>(m)));
 }
+template <>
+inline void store_lanes<f4>(float* p, f4 v, unsigned bits) {
+  for (int l = 0; l < 4; ++l)
+    if (bits >> l & 1u) p[l] = v[l];
+}
 }  // namespace hpcm::cpu::simd
 
 #include "cpu/kernel_table.hpp"
