@@ -144,16 +144,21 @@ ExperimentResult run_experiment(const Model& model, const Params& params, const 
   pull = pl > 0 ? (1.0f / pl) * pull : Vec3{0, -1, 0};
   auto along = [&](const ConditionResult& cr, int f) { return dot(cr.centre_track[f] - cr.centre_rest, pull); };
 
-  // 8.1: condition A does not overshoot: the grab centre's distance from rest never increases.
+  // 8.1: condition A does not overshoot: after release the grab centre never passes rest
+  // (opposite to the pull), and its distance from rest never increases from one frame to the
+  // next. Both, because over-relaxation can carry the centre past rest within a single frame,
+  // which leaves the distance smaller than before and is seen only from the side it ends on.
   {
     const auto& a = res.conditions[kA];
     double worst = 0;
     for (int f = rel; f < static_cast<int>(a.centre_track.size()); ++f) {
       const float prev = norm(a.centre_track[f - 1] - a.centre_rest), cur = norm(a.centre_track[f] - a.centre_rest);
       worst = std::max<double>(worst, cur - prev);
+      worst = std::max<double>(worst, -along(a, f));
     }
     res.checks.push_back(make_check("A_no_overshoot", "8.1", worst <= 1e-6, worst, 1e-6,
-                                    "largest frame-to-frame increase of the grab centre's distance from rest after release (lattice units)"));
+                                    "after release, the grab centre's largest distance past rest (opposite to the pull) "
+                                    "or largest frame-to-frame increase of its distance from rest (lattice units)"));
   }
   // 8.2: B and C overshoot rest and oscillate: the grab centre's velocity along the pull axis
   // changes sign at least twice. Only swings larger than 1 % of the pull count (a reversal is

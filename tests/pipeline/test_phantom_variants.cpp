@@ -2,8 +2,8 @@
 // bone, thick fat, gas pockets, a CT table, thick slices), with the default Params throughout.
 // The checks that hold on every lattice size are asserted on every variant: links in their
 // boxes after every ChainMail stage, fold-free, finite, within the margin, settled after the
-// idle frames, bone velocity 0, and condition A never moving the grab centre away from rest
-// after release (over-relaxation is not monotone, so this is measured here frame by frame).
+// idle frames, bone velocity 0, and condition A never moving the grab centre past or away from
+// rest after release (over-relaxation is not monotone, so this is measured here frame by frame).
 // The overshoot / damping / hierarchy checks need lattices >= 48 per axis (docs/tuning.md);
 // they are asserted where the lattice is that large.
 #include <gtest/gtest.h>
@@ -38,8 +38,11 @@ struct KnownFailure {
 };
 constexpr KnownFailure kKnownFailures[] = {
     {PhantomVariant::ThinTissue, 48, "A_no_overshoot",
-     "the tool moves only 0.02 cells; over-relaxation brings the grab centre to 2.2e-5 cells from rest, and four "
-     "frames after release it moves away from rest by 4.8e-6"},
+     "the tool moves only 0.02 cells; in the first frame after release over-relaxation carries the grab centre "
+     "3.9e-3 cells past rest (19 % of the pull), and four frames later it moves away from rest by 4.8e-6"},
+    {PhantomVariant::ThinTissue, 64, "A_no_overshoot",
+     "the tool moves only 0.02 cells; in the first frame after release over-relaxation carries the grab centre "
+     "1.8e-3 cells past rest (8.5 % of the pull)"},
     {PhantomVariant::AirPockets, 48, "C_hierarchy_peak",
      "muscle&organ's Peak exceeds skin&fat's: the wall over the gas pocket moves with the skin; the margin is 4 % on "
      "the standard 48x48x32 phantom"},
@@ -104,19 +107,21 @@ TEST_P(PhantomVariantExperiment, ChecksHoldWithDefaults) {
       EXPECT_TRUE(asserted.count(std::string(cond) + what)) << cond << what << " was not reported";
 
   // Condition A after release, measured here from the grab centre's track: its distance from
-  // rest never grows from one frame to the next.
+  // rest never grows from one frame to the next, and it never passes rest (the side of rest it
+  // is on: the sign of its offset along the offset it had at release).
   const ConditionResult& a = r.conditions[0];
   ASSERT_EQ(a.label, "A");
   ASSERT_GT(static_cast<int>(a.centre_track.size()), r.release_frame);
-  float worst_increase = 0, dist_at_release = 0;
+  const Vec3 at_release = a.centre_track[r.release_frame - 1] - a.centre_rest;
+  float worst_increase = 0, worst_past_rest = 0, dist_at_release = norm(at_release);
   for (int f = r.release_frame; f < static_cast<int>(a.centre_track.size()); ++f) {
     const float prev = norm(a.centre_track[f - 1] - a.centre_rest), cur = norm(a.centre_track[f] - a.centre_rest);
-    if (f == r.release_frame) dist_at_release = prev;
     worst_increase = std::max(worst_increase, cur - prev);
+    worst_past_rest = std::max(worst_past_rest, -dot(a.centre_track[f] - a.centre_rest, at_release) / dist_at_release);
   }
-  std::printf("  A: grab centre %.4f from rest at release, largest frame-to-frame increase after it %.3g; pull achieved "
-              "%.3f of %.3f requested\n",
-              dist_at_release, worst_increase, a.max_achieved_offset, a.max_requested_offset);
+  std::printf("  A: grab centre %.4f from rest at release, largest frame-to-frame increase after it %.3g, largest "
+              "distance past rest %.3g; pull achieved %.3f of %.3f requested\n",
+              dist_at_release, worst_increase, worst_past_rest, a.max_achieved_offset, a.max_requested_offset);
   // The pull moved the grab centre (on thin-tissue only 0.02 cells: the tool is limited by the
   // anchored plate), and as far as the solver reports for the tool.
   EXPECT_GT(dist_at_release, 0.01f) << "the pull did not move the grab centre";
@@ -124,7 +129,7 @@ TEST_P(PhantomVariantExperiment, ChecksHoldWithDefaults) {
   // The reported check (asserted above, unless a known failure) measures the same thing.
   const auto a_check = std::find_if(r.checks.begin(), r.checks.end(), [](const Check& c) { return c.name == "A_no_overshoot"; });
   ASSERT_NE(a_check, r.checks.end());
-  EXPECT_NEAR(std::max(0.0f, worst_increase), a_check->value, 1e-7);
+  EXPECT_NEAR(std::max({0.0f, worst_increase, worst_past_rest}), a_check->value, 1e-6);
 }
 
 INSTANTIATE_TEST_SUITE_P(
