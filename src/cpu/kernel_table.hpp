@@ -17,7 +17,7 @@ SimdKernels kernel_table(const char* name) {
     layer_row<V>(st, lc, row, sp);
   };
   k.link_check = [](const Storage& st, const solver::Wall& w, int h, int y, int z, int j0, int j1, std::vector<int>& out) {
-    return link_check_row<V>(st, w, h, y, z, j0, j1, out);
+    link_check_row<V>(st, w, h, y, z, j0, j1, out);
   };
   k.name = name;
   return k;

@@ -29,9 +29,8 @@ struct LayerRow {
 using LayerRowKernel = void (*)(Storage& st, const dynamics::LayerConstants& k, const LayerRow& row, SpeedStats* speeds);
 
 /// The link check's vector filter over elements [j0, j1) of half h of row (y, z): appends the
-/// elements that may have a violated +x/+y/+z link or lie outside the wall to `flagged`;
-/// returns the first element it did not look at.
-using LinkRowKernel = int (*)(const Storage& st, const solver::Wall& wall, int h, int y, int z, int j0, int j1,
+/// elements that may have a violated +x/+y/+z link or lie outside the wall to `flagged`.
+using LinkRowKernel = void (*)(const Storage& st, const solver::Wall& wall, int h, int y, int z, int j0, int j1,
                               std::vector<int>& flagged);
 
 struct SimdKernels {

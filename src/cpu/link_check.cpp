@@ -71,14 +71,14 @@ void LinkCheck::run(const Storage& st, const solver::BrickGrid& grid, const std:
       for (int y = lo.y; y < hi.y; ++y)
         for (int h = 0; h < 2; ++h) {
           // Elements x = 2j + h in [lo.x, hi.x); the vector filter covers those whose +x
-          // neighbour exists (x + 1 < nx) in whole vectors, the rest are checked exactly.
+          // neighbour exists (x + 1 < nx), the rest (the row's last element) are checked exactly.
           const int j0 = lo.x / 2;  // lo.x is even
           const int j1 = (hi.x - h + 1) / 2;
-          const int jx = std::min(j1, (d[0] - h) / 2);  // 2j + h + 1 < nx
+          const int jx = std::min(j1, (d[0] - h) / 2);  // 2j + h + 1 < nx; jx >= j0 as lo.x < nx
           flagged.clear();
-          int j = filter_(st, wall, h, y, z, j0, jx, flagged);
+          filter_(st, wall, h, y, z, j0, jx, flagged);
           for (int f : flagged) check_element(2 * f + h, y, z);
-          for (; j < j1; ++j) check_element(2 * j + h, y, z);
+          for (int j = jx; j < j1; ++j) check_element(2 * j + h, y, z);
         }
   });
   const std::size_t first = seeds.size();

@@ -29,9 +29,8 @@ inline V link_excess(const V (&p)[3], const V (&q)[3], V tau, int a) {
 
 /// Elements j in [j0, j1) of half h of row (y, z) (all with a +x neighbour); appends those whose
 /// +x, +y or +z link or whose wall distance may exceed the restoration tolerance to `flagged`.
-/// Returns j1 (the caller checks the elements from there on exactly).
 template <class V>
-int link_check_row(const Storage& st, const solver::Wall& wall, int h, int y, int z, int j0, int j1,
+void link_check_row(const Storage& st, const solver::Wall& wall, int h, int y, int z, int j0, int j1,
                    std::vector<int>& flagged) {
   constexpr int N = sizeof(V) / sizeof(float);
   const Layout& L = st.lay;
@@ -44,8 +43,7 @@ int link_check_row(const Storage& st, const solver::Wall& wall, int h, int y, in
   const V tol = splat<V>(solver::kRestoreTolerance);
   V lane;
   for (int l = 0; l < N; ++l) lane[l] = static_cast<float>(l);
-  int j = j0;
-  for (; j < j1; j += N) {  // the last vector is masked; its loads may run into the padding
+  for (int j = j0; j < j1; j += N) {  // the last vector is masked; its loads may run into the padding
     const Index k = k0 + j;
     const V p[3] = {load<V>(st.p[0].data() + k), load<V>(st.p[1].data() + k), load<V>(st.p[2].data() + k)};
     V worst = splat<V>(0.0f);
@@ -60,7 +58,6 @@ int link_check_row(const Storage& st, const solver::Wall& wall, int h, int y, in
     const auto in_run = lane < splat<V>(static_cast<float>(j1 - j));
     for (unsigned bits = lane_bits<V>((worst > tol) & in_run); bits; bits &= bits - 1) flagged.push_back(j + __builtin_ctz(bits));
   }
-  return j1;
 }
 
 }  // namespace hpcm::cpu::simd

@@ -7,8 +7,8 @@
 // from the link's tolerance exactly as limits_from_tau does, max/min for the intersection, one
 // IEEE division, the over-relaxed step kept below twice the correction
 // (solver::relax_coordinate, nextafterf on the bit pattern) and the clamp. No fused
-// multiply-add (the build uses -ffp-contract=off, and the wide files do not enable FMA). Lanes whose boxes do not intersect, and the border elements of the
-// lattice, go to the scalar rule. The last vector of a run is masked; its loads may run past
+// multiply-add (the build uses -ffp-contract=off, and the wide files do not enable FMA). Lanes
+// whose boxes do not intersect, and the border elements of the lattice, go to the scalar rule. The last vector of a run is masked; its loads may run past
 // the run into the storage's padding.
 #include <algorithm>
 #include <cmath>
@@ -43,20 +43,12 @@ float relax_span(const RelaxContext& c, const RelaxRun& r, const bool (&present)
   const float* const weight = c.weight;
   const float* const link_tau[3] = {c.link_tau[0], c.link_tau[1], c.link_tau[2]};
   const std::uint8_t* const flags = c.flags;
-  int last_marked = -1;  // neighbouring lanes share a column: store each mark once
-  auto mark = [&](int j) {
-    const int col = (j - col_base) >> col_shift;
-    if (col != last_marked) {
-      col_changed[col] = 1;
-      last_marked = col;
-    }
-  };
   float max_corr = 0.0f;
   V max_sq_v = splat<V>(0.0f);  // largest squared correction applied by the vector lanes
   auto scalar = [&](int j) {
     const float corr = relax_element_scalar(c, 2 * j + h, r.y, r.z);
     if (corr > 0.0f) {
-      mark(j);
+      col_changed[(j - col_base) >> col_shift] = 1;
       max_corr = std::max(max_corr, corr);
     }
   };
