@@ -81,4 +81,16 @@ inline void mark_columns(unsigned bits, int first, int col_shift, int n, std::ui
   for_each_column(bits, first, col_shift, n, [cols](int c, unsigned) { cols[c] = 1; });
 }
 
+/// mark_columns for a vector whose lanes all belong to the run (every column it covers is the
+/// run's to write): no branch per column, since on a CT the columns that moved are scattered
+/// and the branch would be mispredicted.
+inline void mark_whole_columns(unsigned bits, int first, int col_shift, int n, std::uint8_t* cols) {
+  const int width = 1 << col_shift;
+  if ((first & (width - 1)) != 0 || width > n || width >= 32) return mark_columns(bits, first, col_shift, n, cols);
+  const unsigned column_lanes = (1u << width) - 1u;
+  std::uint8_t* const c0 = cols + (first >> col_shift);
+  for (int c = 0; c < n >> col_shift; ++c)
+    c0[c] = static_cast<std::uint8_t>(c0[c] | (((bits >> (c * width)) & column_lanes) != 0));
+}
+
 }  // namespace hpcm::cpu::simd
