@@ -64,6 +64,14 @@ void layer_row(Storage& st, const dynamics::LayerConstants& k, const LayerRow& r
       for (int l = 0; l < count; ++l)
         if (col_asleep[column(j + l)]) fixed[l] = -1;
     V post[3], pre[3], v[3];
+    if (prefetch_due<N>(j)) {  // nine streams; 4 lines ahead measured best (BENCHMARKS.md)
+      constexpr int kAhead = 4 * kPrefetchLine;
+      for (int a = 0; a < 3; ++a) {
+        prefetch(p_[a] + e + kAhead);
+        prefetch(q_[a] + e + kAhead);
+        prefetch(v_[a] + e + kAhead);
+      }
+    }
     for (int a = 0; a < 3; ++a) {
       post[a] = load<V>(p_[a] + e);
       pre[a] = load<V>(q_[a] + e);

@@ -115,8 +115,9 @@ void Relaxation::init(const solver::BrickGrid& grid, RelaxRunKernel kernel) {
 // skipped element would compute what it computed last time, so this gives the same floats as
 // processing everything.
 //
-// Threads split the phases: thread k takes a contiguous group and follows the thread of the
-// earlier phases one step behind, waiting only on that thread's progress counter (no barrier
+// Threads split the phases: thread k takes a contiguous group (the first of which meets each
+// plane first on that thread, and prefetches it) and follows the thread of the earlier phases
+// one step behind, waiting only on that thread's progress counter (no barrier
 // at all, and no waiting on a thread that has not started: a thread that starts late simply
 // finds the work of the earlier phases done).
 bool Relaxation::cell_active(int p, int z, Index cell) const {
@@ -137,7 +138,7 @@ bool Relaxation::cell_active(int p, int z, Index cell) const {
   return false;
 }
 
-float Relaxation::phase(const RelaxContext& ctx, int p, int z, Index& active_cells) {
+float Relaxation::phase(const RelaxContext& ctx, int p, int z, bool prefetch, Index& active_cells) {
   const Layout& L = *ctx.lay;
   const int B = grid_.size, colour = p & 1;
   const Int3 nb = grid_.nb;
@@ -161,7 +162,7 @@ float Relaxation::phase(const RelaxContext& ctx, int p, int z, Index& active_cel
       for (int y = by * B; y < y1; ++y) {
         const int h = (colour ^ y ^ z) & 1;  // the half whose elements have this colour
         // x = 2j + h in [x0, x1): j in [x0 / 2, (x1 - h + 1) / 2)
-        mc = std::max(mc, kernel_(ctx, RelaxRun{h, y, z, x0 / 2, (x1 - h + 1) / 2, ch + row + bx, x0 / 2, B / 2}));
+        mc = std::max(mc, kernel_(ctx, RelaxRun{h, y, z, x0 / 2, (x1 - h + 1) / 2, ch + row + bx, x0 / 2, B / 2, prefetch}));
       }
       bx = end;
     }
@@ -203,7 +204,7 @@ RelaxStats Relaxation::run(const RelaxContext& ctx, int sweeps, std::vector<std:
         const int z = t - p;
         if (z < 0 || z >= nz) continue;
         mc[static_cast<std::size_t>(p - p0)] =
-            std::max(mc[static_cast<std::size_t>(p - p0)], phase(ctx, p, z, cells[static_cast<std::size_t>(p - p0)]));
+            std::max(mc[static_cast<std::size_t>(p - p0)], phase(ctx, p, z, p == p0, cells[static_cast<std::size_t>(p - p0)]));
       }
       progress_[static_cast<std::size_t>(k)].store(t, std::memory_order_release);
       progress_[static_cast<std::size_t>(k)].notify_all();

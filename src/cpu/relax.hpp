@@ -46,6 +46,7 @@ struct RelaxRun {
   int h, y, z, j0, j1;
   std::uint8_t* col_changed;
   int col_base, col_width;
+  bool prefetch;  ///< the first pass of a thread over this plane: prefetch what it reads first
 };
 
 /// Result of a run: largest correction applied (0: nothing moved).
@@ -70,7 +71,8 @@ class Relaxation {
     return changed_[static_cast<std::size_t>((static_cast<Index>(p) * grid_.dims.z + z) * cells_ + cell)] != 0;
   }
   bool cell_active(int p, int z, Index cell) const;
-  float phase(const RelaxContext& ctx, int p, int z, Index& active_cells);
+  /// One phase over plane z; `prefetch`: the thread's first pass over that plane this frame.
+  float phase(const RelaxContext& ctx, int p, int z, bool prefetch, Index& active_cells);
   std::uint8_t* worked_ = nullptr;  ///< per brick, during run()
   solver::BrickGrid grid_;
   RelaxRunKernel kernel_ = nullptr;

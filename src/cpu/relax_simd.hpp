@@ -70,6 +70,19 @@ float relax_span(const RelaxContext& c, const RelaxRun& r, const bool (&present)
 
   for (int j = i0; j < i1; j += N) {
     const Index k = own0 + j;
+    // What this thread's first pass over the plane reads first: the +z neighbours' positions
+    // and weights (the plane ahead of the wavefront) and the element's own link tolerances and
+    // flags. Measured best about 8 lines ahead (BENCHMARKS.md).
+    if (r.prefetch && prefetch_due<N>(j)) {
+      constexpr int kAhead = 8 * kPrefetchLine;
+      if (AllRows || present[5]) {
+        const float* const ahead_plane[] = {px, py, pz, weight};
+        for (const float* a : ahead_plane) prefetch(a + k + sz + kAhead);
+      }
+      for (const float* a : link_tau) prefetch(a + k + kAhead);
+      prefetch(link_tau[0] + left + j + kAhead);
+      prefetch(flags + k + kAhead);
+    }
     const V cur0 = load<V>(px + k), cur1 = load<V>(py + k), cur2 = load<V>(pz + k);
     V s0 = zero, s1 = zero, s2 = zero, sw = zero;
     V lo0 = wall_lo[0], lo1 = wall_lo[1], lo2 = wall_lo[2];

@@ -93,4 +93,15 @@ inline void mark_whole_columns(unsigned bits, int first, int col_shift, int n, s
     c0[c] = static_cast<std::uint8_t>(c0[c] | (((bits >> (c * width)) & column_lanes) != 0));
 }
 
+/// Software prefetch for streams the hardware prefetcher does not keep up with: the element
+/// kernels read a dozen or more arrays side by side, more streams than it tracks. Issued once
+/// per 64-byte line of floats (every vector at 16 lanes, every second or fourth at 8 or 4);
+/// `ahead` is in elements. Prefetches never fault and change no result.
+inline constexpr int kPrefetchLine = 16;
+template <int N>
+inline bool prefetch_due(int j) {
+  return N >= kPrefetchLine || (j & (kPrefetchLine - 1)) < N;
+}
+inline void prefetch(const void* p) { __builtin_prefetch(p); }
+
 }  // namespace hpcm::cpu::simd
