@@ -104,12 +104,24 @@ void layer_row(Storage& st, const dynamics::LayerConstants& k, const LayerRow& r
     // enter as 0 and change no maximum).
     const M dynamic_in_row = dynamic & in_row;
     const V speed_dynamic = dynamic_in_row ? speed : zero;
-    for_each_column(lane_bits<V>(dynamic_in_row), j - col_base, col_shift, N, [&](int c, unsigned lanes) {
-      float m = col_speed[c];
-      for (int l = __builtin_ctz(lanes), last = 31 - __builtin_clz(lanes); l <= last; ++l)
-        m = m > speed_dynamic[l] ? m : speed_dynamic[l];
-      col_speed[c] = m;
-    });
+    const int width = 1 << col_shift;
+    if (count == N && ((j - col_base) & (width - 1)) == 0 && width <= N) {
+      // A whole vector of whole columns: every column's maximum, without a branch on which
+      // lanes are dynamic (on a CT they are scattered); a column without one takes max(m, 0).
+      float* const c0 = col_speed + ((j - col_base) >> col_shift);
+      for (int c = 0; c < N >> col_shift; ++c) {
+        float m = c0[c];
+        for (int l = c * width; l < (c + 1) * width; ++l) m = m > speed_dynamic[l] ? m : speed_dynamic[l];
+        c0[c] = m;
+      }
+    } else {
+      for_each_column(lane_bits<V>(dynamic_in_row), j - col_base, col_shift, N, [&](int c, unsigned lanes) {
+        float m = col_speed[c];
+        for (int l = __builtin_ctz(lanes), last = 31 - __builtin_clz(lanes); l <= last; ++l)
+          m = m > speed_dynamic[l] ? m : speed_dynamic[l];
+        col_speed[c] = m;
+      });
+    }
     // 6. position update.
     const V g = beta * by_tissue<V>(t, k.rho);
     V out[3];
@@ -137,8 +149,13 @@ void layer_row(Storage& st, const dynamics::LayerConstants& k, const LayerRow& r
     const M has_v = (nv[0] != zero) | (nv[1] != zero) | (nv[2] != zero);
     const M changed = (out[0] != post[0]) | (out[1] != post[1]) | (out[2] != post[2]);
     const unsigned with_v = lane_bits<V>(has_v & in_row), moved = lane_bits<V>(changed & in_row);
-    mark_columns(with_v, j - col_base, col_shift, N, col_velocity);
-    mark_columns(moved, j - col_base, col_shift, N, col_moved);
+    if (count == N) {
+      mark_whole_columns(with_v, j - col_base, col_shift, N, col_velocity);
+      mark_whole_columns(moved, j - col_base, col_shift, N, col_moved);
+    } else {
+      mark_columns(with_v, j - col_base, col_shift, N, col_velocity);
+      mark_columns(moved, j - col_base, col_shift, N, col_moved);
+    }
     if (speeds) {
       const V sp = norm3<V>(out[0] - pre[0], out[1] - pre[1], out[2] - pre[2]);
       for (int l = 0; l < count; ++l) {
