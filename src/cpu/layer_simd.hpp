@@ -149,13 +149,8 @@ void layer_row(Storage& st, const dynamics::LayerConstants& k, const LayerRow& r
     const M has_v = (nv[0] != zero) | (nv[1] != zero) | (nv[2] != zero);
     const M changed = (out[0] != post[0]) | (out[1] != post[1]) | (out[2] != post[2]);
     const unsigned with_v = lane_bits<V>(has_v & in_row), moved = lane_bits<V>(changed & in_row);
-    if (count == N) {
-      mark_whole_columns(with_v, j - col_base, col_shift, N, col_velocity);
-      mark_whole_columns(moved, j - col_base, col_shift, N, col_moved);
-    } else {
-      mark_columns(with_v, j - col_base, col_shift, N, col_velocity);
-      mark_columns(moved, j - col_base, col_shift, N, col_moved);
-    }
+    mark_columns(with_v, j - col_base, col_shift, N, col_velocity, count == N);
+    mark_columns(moved, j - col_base, col_shift, N, col_moved, count == N);
     if (speeds) {
       const V sp = norm3<V>(out[0] - pre[0], out[1] - pre[1], out[2] - pre[2]);
       for (int l = 0; l < count; ++l) {

@@ -8,8 +8,8 @@
 // IEEE division, the over-relaxed step kept below twice the correction
 // (solver::relax_coordinate, nextafterf on the bit pattern) and the clamp. No fused
 // multiply-add (the build uses -ffp-contract=off, and the wide files do not enable FMA). Lanes
-// whose boxes do not intersect, and the border elements of the lattice, go to the scalar rule. The last vector of a run is masked; its loads may run past
-// the run into the storage's padding.
+// whose boxes do not intersect, and the border elements of the lattice, go to the scalar rule.
+// The last vector of a run is masked; its loads may run past the run into the storage's padding.
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -172,7 +172,7 @@ float relax_span(const RelaxContext& c, const RelaxRun& r, const bool (&present)
       store<V>(px + k, apply ? out0 : cur0);
       store<V>(py + k, apply ? out1 : cur1);
       store<V>(pz + k, apply ? out2 : cur2);
-      mark_whole_columns(applied, j - col_base, col_shift, N, col_changed);
+      mark_columns(applied, j - col_base, col_shift, N, col_changed, true);
     } else {  // the masked tail: lanes past the run may belong to another thread's run
       store_lanes<V>(px + k, out0, applied);
       store_lanes<V>(py + k, out1, applied);

@@ -68,35 +68,31 @@ inline void for_each_column(unsigned bits, int first, int col_shift, int n, F&& 
 /// Sets cols[c] = 1 for every column c that holds a lane set in `bits` (as for_each_column).
 /// Vectors that start on a column boundary and hold whole columns (the common case: runs start
 /// at a brick column and vectors are a power of two wide) take a loop of fixed length.
-inline void mark_columns(unsigned bits, int first, int col_shift, int n, std::uint8_t* cols) {
-  if (!bits) return;
+/// `whole_vector`: every lane of the vector belongs to the run, so every column it covers is
+/// the run's to write; the loop then has no branch per column (on a CT the columns that moved
+/// are scattered, and the branch would be mispredicted).
+inline void mark_columns(unsigned bits, int first, int col_shift, int n, std::uint8_t* cols, bool whole_vector = false) {
+  if (!bits && !whole_vector) return;
   const int width = 1 << col_shift;
   if ((first & (width - 1)) == 0 && width <= n && width < 32) {
     const unsigned column_lanes = (1u << width) - 1u;
     std::uint8_t* const c0 = cols + (first >> col_shift);
-    for (int c = 0; c < n >> col_shift; ++c)
-      if ((bits >> (c * width)) & column_lanes) c0[c] = 1;
+    for (int c = 0; c < n >> col_shift; ++c) {
+      const bool moved = ((bits >> (c * width)) & column_lanes) != 0;
+      if (whole_vector)
+        c0[c] = static_cast<std::uint8_t>(c0[c] | moved);
+      else if (moved)
+        c0[c] = 1;
+    }
     return;
   }
   for_each_column(bits, first, col_shift, n, [cols](int c, unsigned) { cols[c] = 1; });
 }
 
-/// mark_columns for a vector whose lanes all belong to the run (every column it covers is the
-/// run's to write): no branch per column, since on a CT the columns that moved are scattered
-/// and the branch would be mispredicted.
-inline void mark_whole_columns(unsigned bits, int first, int col_shift, int n, std::uint8_t* cols) {
-  const int width = 1 << col_shift;
-  if ((first & (width - 1)) != 0 || width > n || width >= 32) return mark_columns(bits, first, col_shift, n, cols);
-  const unsigned column_lanes = (1u << width) - 1u;
-  std::uint8_t* const c0 = cols + (first >> col_shift);
-  for (int c = 0; c < n >> col_shift; ++c)
-    c0[c] = static_cast<std::uint8_t>(c0[c] | (((bits >> (c * width)) & column_lanes) != 0));
-}
-
 /// Software prefetch for streams the hardware prefetcher does not keep up with: the element
 /// kernels read a dozen or more arrays side by side, more streams than it tracks. Issued once
-/// per 64-byte line of floats (every vector at 16 lanes, every second or fourth at 8 or 4);
-/// `ahead` is in elements. Prefetches never fault and change no result.
+/// per 64-byte line of floats (every vector at 16 lanes, every second or fourth at 8 or 4).
+/// Prefetches never fault and change no result.
 inline constexpr int kPrefetchLine = 16;
 template <int N>
 inline bool prefetch_due(int j) {
