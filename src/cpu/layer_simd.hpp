@@ -71,6 +71,9 @@ void layer_row(Storage& st, const dynamics::LayerConstants& k, const LayerRow& r
         prefetch(q_[a] + e + kAhead);
         prefetch(v_[a] + e + kAhead);
       }
+      // The tissue and flag bytes, as far ahead in lines: four times as many elements.
+      prefetch(tissue + e + 4 * kAhead);
+      prefetch(flags + e + 4 * kAhead);
     }
     for (int a = 0; a < 3; ++a) {
       post[a] = load<V>(p_[a] + e);

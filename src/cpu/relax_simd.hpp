@@ -139,24 +139,8 @@ float relax_span(const RelaxContext& c, const RelaxRun& r, const bool (&present)
     if (AllRows || present[4]) neighbour.template operator()<4>(k - sz, k - sz);
     if (AllRows || present[5]) neighbour.template operator()<5>(k + sz, k);
 
-    // solver::relax_coordinate: where rounding lengthens the step to (2 + omega) / 2 times the
-    // correction q, one float step back toward cur (nextafterf on the bit pattern: minus one
-    // where that moves toward zero). Lanes within a few float steps of their average need it,
-    // and a third to a half of all vectors have such a lane: without a branch, which the CPU
-    // would mispredict that often.
-    auto relaxed = [&](V s, V cur) {
-      const V q = s / sw;
-      V t = cur + omega * q;
-      const V d = t - cur;
-      const M back = ((q > zero) ? (d >= limit_factor * q) : (d <= limit_factor * q)) & (q != zero);
-      const M toward_zero = (t > cur) == (t > zero);
-      M bits;
-      std::memcpy(&bits, &t, sizeof bits);
-      bits = bits + (back & (toward_zero | 1));  // -1, +1 or 0
-      std::memcpy(&t, &bits, sizeof t);
-      return t;
-    };
-    const V t0 = relaxed(s0, cur0), t1 = relaxed(s1, cur1), t2 = relaxed(s2, cur2);
+    const V t0 = relax_step(s0, sw, cur0, omega, limit_factor), t1 = relax_step(s1, sw, cur1, omega, limit_factor),
+            t2 = relax_step(s2, sw, cur2, omega, limit_factor);
     // clampf, valid where lo <= hi
     const V out0 = vmax(lo0, vmin(hi0, t0)), out1 = vmax(lo1, vmin(hi1, t1)), out2 = vmax(lo2, vmin(hi2, t2));
     const V d0 = out0 - cur0, d1 = out1 - cur1, d2 = out2 - cur2;

@@ -1,9 +1,10 @@
 // The CPU kernels on 16-wide vectors. This file alone is compiled for AVX-512 (F, VL, DQ, BW;
 // no FMA contraction: the build uses -ffp-contract=off), and its kernels run only where the
 // CPU reports those extensions (select_kernels). Same source as the 4- and 8-wide paths.
-// GCC 12's AVX-512 intrinsics start from _mm512_undefined_*(), which -Wmaybe-uninitialized
-// reports inside the system header; the values are fully written.
+// GCC 12's AVX-512 intrinsics start from _mm512_undefined_*(), which -Wmaybe-uninitialized and
+// -Wuninitialized report inside the system header; the values are fully written.
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#pragma GCC diagnostic ignored "-Wuninitialized"
 #include <immintrin.h>
 
 #include <algorithm>
@@ -29,6 +30,27 @@ inline unsigned lane_bits<f16>(i16 m) {
 template <>
 inline void store_lanes<f16>(float* p, f16 v, unsigned bits) {
   _mm512_mask_storeu_ps(p, static_cast<__mmask16>(bits), reinterpret_cast<__m512>(v));
+}
+// The step-back test on mask registers. With d = t - cur and q != 0, d has the sign of q
+// (rounding is monotone and omega > 0), so "q > 0 ? d >= limit_factor * q : d <= limit_factor * q"
+// is |d| >= |limit_factor * q|, and a NaN fails both; the toward-zero step is a masked
+// subtraction, the other a masked addition, of one on the bit pattern.
+template <>
+inline f16 relax_step<f16>(f16 s, f16 sw, f16 cur, f16 omega, f16 limit_factor) {
+  const f16 q = s / sw;
+  const f16 t = cur + omega * q;
+  const __m512 mq = reinterpret_cast<__m512>(q), mt = reinterpret_cast<__m512>(t), mcur = reinterpret_cast<__m512>(cur);
+  const __m512 zero = _mm512_setzero_ps();
+  const __m512 d = reinterpret_cast<__m512>(t - cur), lq = reinterpret_cast<__m512>(limit_factor * q);
+  const __mmask16 nonzero = _mm512_cmp_ps_mask(mq, zero, _CMP_NEQ_UQ);
+  const __mmask16 back = _mm512_mask_cmp_ps_mask(nonzero, _mm512_abs_ps(d), _mm512_abs_ps(lq), _CMP_GE_OQ);
+  const __mmask16 toward_zero =
+      _kxnor_mask16(_mm512_cmp_ps_mask(mt, mcur, _CMP_GT_OQ), _mm512_cmp_ps_mask(mt, zero, _CMP_GT_OQ));
+  const __m512i one = _mm512_set1_epi32(1);
+  __m512i bits = _mm512_castps_si512(mt);
+  bits = _mm512_mask_sub_epi32(bits, _kand_mask16(back, toward_zero), bits, one);
+  bits = _mm512_mask_add_epi32(bits, _kandn_mask16(toward_zero, back), bits, one);
+  return reinterpret_cast<f16>(_mm512_castsi512_ps(bits));
 }
 }  // namespace hpcm::cpu::simd
 
