@@ -33,8 +33,14 @@ using LayerRowKernel = void (*)(Storage& st, const dynamics::LayerConstants& k, 
 using LinkRowKernel = void (*)(const Storage& st, const solver::Wall& wall, int h, int y, int z, int j0, int j1,
                               std::vector<int>& flagged);
 
+/// The relaxation's step, solver::relax_coordinate(cur, s / sw, omega), on n lanes through the
+/// relaxation kernel's own vector code: lets tests hold every path to the scalar rule on chosen
+/// values (steps a few float steps long, signed zeros, denormals).
+using RelaxStepKernel = void (*)(const float* s, const float* sw, const float* cur, float omega, float* out, int n);
+
 struct SimdKernels {
   RelaxRunKernel relax = nullptr;
+  RelaxStepKernel relax_step = nullptr;
   LayerRowKernel layer = nullptr;
   LinkRowKernel link_check = nullptr;
   const char* name = "";  ///< "avx512", "avx2" or "sse2"
