@@ -159,11 +159,7 @@ float Relaxation::phase(const RelaxContext& ctx, int p, int z, bool prefetch, In
         std::atomic_ref<std::uint8_t>(worked_[row + c + cells_ * (z / B)]).store(1, std::memory_order_relaxed);
       // Cells [bx, end) of this brick row: their rows, this colour's half of each.
       const int x0 = bx * B, x1 = std::min(end * B, L.dims.x);
-      for (int y = by * B; y < y1; ++y) {
-        const int h = (colour ^ y ^ z) & 1;  // the half whose elements have this colour
-        // x = 2j + h in [x0, x1): j in [x0 / 2, (x1 - h + 1) / 2)
-        mc = std::max(mc, kernel_(ctx, RelaxRun{h, y, z, x0 / 2, (x1 - h + 1) / 2, ch + row + bx, x0 / 2, B / 2, prefetch}));
-      }
+      mc = std::max(mc, kernel_(ctx, RelaxRun{colour, by * B, y1, z, x0, x1, ch + row + bx, x0 / 2, B / 2, prefetch}));
       bx = end;
     }
   }

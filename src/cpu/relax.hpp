@@ -40,10 +40,11 @@ struct RelaxContext {
 /// threshold_sq for a threshold: the least s with sqrtf(s) >= threshold.
 float squared_threshold(float threshold);
 
-/// One colour's elements [j0, j1) of half h of row (y, z). An element j that moves marks
-/// brick column col_changed[(j - col_base) / col_width].
+/// One colour's elements with x0 <= x < x1 in rows y0 <= y < y1 of plane z (in each row, the
+/// half whose elements have that colour: x = 2j + h). An element j that moves marks brick
+/// column col_changed[(j - col_base) / col_width].
 struct RelaxRun {
-  int h, y, z, j0, j1;
+  int colour, y0, y1, z, x0, x1;
   std::uint8_t* col_changed;
   int col_base, col_width;
   bool prefetch;  ///< the first pass of a thread over this plane: prefetch what it reads first

@@ -20,16 +20,17 @@
 
 namespace hpcm::cpu::simd {
 
-/// The vector rule over [i0, i1) of a run. AllRows: the row has all four y/z neighbours (every
-/// interior row), so the neighbour loop is fully unrolled with compile-time axes and sides and
-/// the accumulators stay in registers; border rows pass present[] and skip missing neighbours.
+/// The vector rule over rows [ya, yb) of a run. AllRows: every row has all four y/z neighbours
+/// (interior rows of an interior plane), so the neighbour loop is fully unrolled with
+/// compile-time axes and sides and the accumulators stay in registers; border rows skip missing
+/// neighbours by present[]. Several rows per call: the constants are set up once for all of
+/// them, and the largest correction is reduced over the lanes once.
 template <class V, bool AllRows>
-float relax_span(const RelaxContext& c, const RelaxRun& r, const bool (&present)[6]) {
+float relax_span(const RelaxContext& c, const RelaxRun& r, int ya, int yb) {
   constexpr int N = sizeof(V) / sizeof(float);
   using M = Mask<V>;
   const Layout& L = *c.lay;
-  const int nx = L.dims.x;
-  const int h = r.h;
+  const int nx = L.dims.x, ny = L.dims.y, nz = L.dims.z;
   // Columns of the changed flags are col_width (a power of two) run elements wide.
   int col_shift = 0;
   while ((1 << col_shift) < r.col_width) ++col_shift;
@@ -45,20 +46,7 @@ float relax_span(const RelaxContext& c, const RelaxRun& r, const bool (&present)
   const std::uint8_t* const flags = c.flags;
   float max_corr = 0.0f;
   V max_sq_v = splat<V>(0.0f);  // largest squared correction applied by the vector lanes
-  auto scalar = [&](int j) {
-    const float corr = relax_element_scalar(c, 2 * j + h, r.y, r.z);
-    if (corr > 0.0f) {
-      col_changed[(j - col_base) >> col_shift] = 1;
-      max_corr = std::max(max_corr, corr);
-    }
-  };
-  const int i0 = r.j0, i1 = r.j1;
   const V minus_inf = splat<V>(-solver::kInf), plus_inf = splat<V>(solver::kInf);
-  const Index own0 = L.row_start(h, r.y, r.z);
-  const Index oth0 = L.row_start(1 - h, r.y, r.z);
-  const Index sy = L.width[h], sz = L.plane[h];
-  // -x neighbour of element j: other half, index j - 1 (h = 0) or j (h = 1); +x: j or j + 1.
-  const Index left = oth0 - (h == 0 ? 1 : 0), right = oth0 + (h == 0 ? 0 : 1);
   const V one = splat<V>(1.0f), zero = splat<V>(0.0f);
   const V k08 = splat<V>(0.8f), k098 = splat<V>(0.98f), khalf = splat<V>(0.5f);
   const V omega = splat<V>(c.omega), limit_factor = splat<V>(0.5f * (2.0f + c.omega)), threshold_sq = splat<V>(c.threshold_sq);
@@ -68,105 +56,124 @@ float relax_span(const RelaxContext& c, const RelaxRun& r, const bool (&present)
   for (int l = 0; l < N; ++l) lane_index[l] = static_cast<float>(l);
   const V x_first = splat<V>(0.0f), x_last = splat<V>(static_cast<float>(nx - 1));
 
-  for (int j = i0; j < i1; j += N) {
-    const Index k = own0 + j;
-    // What this thread's first pass over the plane reads first: the +z neighbours' positions
-    // and weights (the plane ahead of the wavefront) and the element's own link tolerances and
-    // flags. Measured best about 8 lines ahead (BENCHMARKS.md).
-    if (r.prefetch && prefetch_due<N>(j)) {
-      constexpr int kAhead = 8 * kPrefetchLine;
-      if (AllRows || present[5]) {
-        const float* const ahead_plane[] = {px, py, pz, weight};
-        for (const float* a : ahead_plane) prefetch(a + k + sz + kAhead);
+  for (int y = ya; y < yb; ++y) {
+    const int h = (r.colour ^ y ^ r.z) & 1;  // the half whose elements have this colour
+    [[maybe_unused]] const bool present[6] = {true, true, y > 0, y + 1 < ny, r.z > 0, r.z + 1 < nz};
+    auto scalar = [&](int j) {
+      const float corr = relax_element_scalar(c, 2 * j + h, y, r.z);
+      if (corr > 0.0f) {
+        col_changed[(j - col_base) >> col_shift] = 1;
+        max_corr = std::max(max_corr, corr);
       }
-      for (const float* a : link_tau) prefetch(a + k + kAhead);
-      prefetch(link_tau[0] + left + j + kAhead);
-      prefetch(flags + k + kAhead);
-    }
-    const V cur0 = load<V>(px + k), cur1 = load<V>(py + k), cur2 = load<V>(pz + k);
-    V s0 = zero, s1 = zero, s2 = zero, sw = zero;
-    V lo0 = wall_lo[0], lo1 = wall_lo[1], lo2 = wall_lo[2];
-    V hi0 = wall_hi[0], hi1 = wall_hi[1], hi2 = wall_hi[2];
-    // Lanes whose element has no -x (x = 0) or no +x (x = nx - 1) neighbour.
-    const V x = splat<V>(static_cast<float>(h)) + splat<V>(2.0f) * (lane_index + splat<V>(static_cast<float>(j)));
-    const M no_left = x == x_first, no_right = x == x_last;
-    // Neighbour q in the rule's order -x, +x, -y, +y, -z, +z: axis q / 2, the element on the
-    // neighbour's + side for even q. Same operations, same order as the scalar rule.
-    auto neighbour = [&]<int q>(Index nk, Index owner) {
-      constexpr int a = q / 2;
-      constexpr bool plus_side = q % 2 == 0;
-      const V side = splat<V>(plus_side ? 1.0f : -1.0f);
-      V w = load<V>(weight + nk);
-      [[maybe_unused]] M missing{};
-      if constexpr (q == 0) missing = no_left;
-      if constexpr (q == 1) missing = no_right;
-      if constexpr (q < 2) w = missing ? zero : w;
-      const V p0 = load<V>(px + nk), p1 = load<V>(py + nk), p2 = load<V>(pz + nk);
-      const V o0 = p0 - cur0, o1 = p1 - cur1, o2 = p2 - cur2;  // offsets from the element
-      s0 = s0 + w * (a == 0 ? o0 + side : o0);
-      s1 = s1 + w * (a == 1 ? o1 + side : o1);
-      s2 = s2 + w * (a == 2 ? o2 + side : o2);
-      sw = sw + w;
-      // limits_from_tau: min_d = 1 - 0.8 tau, max_d = 1 + tau, shear = min(tau, 0.5 (0.98 - 0.8 tau)).
-      const V tau = load<V>(link_tau[a] + owner);
-      const V min_d = one - k08 * tau, max_d = one + tau;
-      const V cap = khalf * (k098 - k08 * tau);
-      const V shear = tau < cap ? tau : cap;
-      auto bound = [&](V& lo, V& hi, V pn, bool axial) {
-        V l, u;
-        if (axial) {
-          l = plus_side ? pn + min_d : pn - max_d;
-          u = plus_side ? pn + max_d : pn - min_d;
-        } else {
-          l = pn - shear;
-          u = pn + shear;
-        }
-        if constexpr (q < 2) {
-          l = missing ? minus_inf : l;
-          u = missing ? plus_inf : u;
-        }
-        lo = vmax(lo, l);
-        hi = vmin(hi, u);
-      };
-      bound(lo0, hi0, p0, a == 0);
-      bound(lo1, hi1, p1, a == 1);
-      bound(lo2, hi2, p2, a == 2);
     };
-    neighbour.template operator()<0>(left + j, left + j);
-    neighbour.template operator()<1>(right + j, k);
-    if (AllRows || present[2]) neighbour.template operator()<2>(k - sy, k - sy);
-    if (AllRows || present[3]) neighbour.template operator()<3>(k + sy, k);
-    if (AllRows || present[4]) neighbour.template operator()<4>(k - sz, k - sz);
-    if (AllRows || present[5]) neighbour.template operator()<5>(k + sz, k);
+    // x = 2j + h in [x0, x1): j in [x0 / 2, (x1 - h + 1) / 2)
+    const int i0 = r.x0 / 2, i1 = (r.x1 - h + 1) / 2;
+    const Index own0 = L.row_start(h, y, r.z);
+    const Index oth0 = L.row_start(1 - h, y, r.z);
+    const Index sy = L.width[h], sz = L.plane[h];
+    // -x neighbour of element j: other half, index j - 1 (h = 0) or j (h = 1); +x: j or j + 1.
+    const Index left = oth0 - (h == 0 ? 1 : 0), right = oth0 + (h == 0 ? 0 : 1);
 
-    const V t0 = relax_step(s0, sw, cur0, omega, limit_factor), t1 = relax_step(s1, sw, cur1, omega, limit_factor),
-            t2 = relax_step(s2, sw, cur2, omega, limit_factor);
-    // clampf, valid where lo <= hi
-    const V out0 = vmax(lo0, vmin(hi0, t0)), out1 = vmax(lo1, vmin(hi1, t1)), out2 = vmax(lo2, vmin(hi2, t2));
-    const V d0 = out0 - cur0, d1 = out1 - cur1, d2 = out2 - cur2;
-    // corr >= threshold exactly when corr^2 >= threshold_sq (RelaxContext::threshold_sq).
-    const V corr_sq = d0 * d0 + d1 * d1 + d2 * d2;
-    const M in_run = lane_index < splat<V>(static_cast<float>(i1 - j));
-    const M boxes_meet = ~(lo0 > hi0) & ~(lo1 > hi1) & ~(lo2 > hi2);
-    const M free = ((load_bytes<V>(flags + k) & static_cast<int>(kFixed)) == 0) & in_run;
-    const M apply = boxes_meet & free & (corr_sq >= threshold_sq) & (corr_sq != zero);
-    const unsigned applied = lane_bits<V>(apply), conflict = lane_bits<V>(free & ~boxes_meet);
-    // No branch on `applied`: on a CT a tenth of the vectors apply nothing, scattered.
-    if (j + N <= i1) {  // a full vector: every lane is this run's
-      store<V>(px + k, apply ? out0 : cur0);
-      store<V>(py + k, apply ? out1 : cur1);
-      store<V>(pz + k, apply ? out2 : cur2);
-      mark_columns(applied, j - col_base, col_shift, N, col_changed, true);
-    } else {  // the masked tail: lanes past the run may belong to another thread's run
-      store_lanes<V>(px + k, out0, applied);
-      store_lanes<V>(py + k, out1, applied);
-      store_lanes<V>(pz + k, out2, applied);
-      mark_columns(applied, j - col_base, col_shift, N, col_changed);
+    for (int j = i0; j < i1; j += N) {
+      const Index k = own0 + j;
+      // What this thread's first pass over the plane reads first: the +z neighbours' positions
+      // and weights (the plane ahead of the wavefront) and the element's own link tolerances and
+      // flags. Measured best about 8 lines ahead (BENCHMARKS.md).
+      if (r.prefetch && prefetch_due<N>(j)) {
+        constexpr int kAhead = 8 * kPrefetchLine;
+        if (AllRows || present[5]) {
+          const float* const ahead_plane[] = {px, py, pz, weight};
+          for (const float* a : ahead_plane) prefetch(a + k + sz + kAhead);
+        }
+        for (const float* a : link_tau) prefetch(a + k + kAhead);
+        prefetch(link_tau[0] + left + j + kAhead);
+        prefetch(flags + k + kAhead);
+      }
+      const V cur0 = load<V>(px + k), cur1 = load<V>(py + k), cur2 = load<V>(pz + k);
+      V s0 = zero, s1 = zero, s2 = zero, sw = zero;
+      V lo0 = wall_lo[0], lo1 = wall_lo[1], lo2 = wall_lo[2];
+      V hi0 = wall_hi[0], hi1 = wall_hi[1], hi2 = wall_hi[2];
+      // Lanes whose element has no -x (x = 0) or no +x (x = nx - 1) neighbour.
+      const V x = splat<V>(static_cast<float>(h)) + splat<V>(2.0f) * (lane_index + splat<V>(static_cast<float>(j)));
+      const M no_left = x == x_first, no_right = x == x_last;
+      // Neighbour q in the rule's order -x, +x, -y, +y, -z, +z: axis q / 2, the element on the
+      // neighbour's + side for even q. Same operations, same order as the scalar rule.
+      auto neighbour = [&]<int q>(Index nk, Index owner) {
+        constexpr int a = q / 2;
+        constexpr bool plus_side = q % 2 == 0;
+        const V side = splat<V>(plus_side ? 1.0f : -1.0f);
+        V w = load<V>(weight + nk);
+        [[maybe_unused]] M missing{};
+        if constexpr (q == 0) missing = no_left;
+        if constexpr (q == 1) missing = no_right;
+        if constexpr (q < 2) w = missing ? zero : w;
+        const V p0 = load<V>(px + nk), p1 = load<V>(py + nk), p2 = load<V>(pz + nk);
+        const V o0 = p0 - cur0, o1 = p1 - cur1, o2 = p2 - cur2;  // offsets from the element
+        s0 = s0 + w * (a == 0 ? o0 + side : o0);
+        s1 = s1 + w * (a == 1 ? o1 + side : o1);
+        s2 = s2 + w * (a == 2 ? o2 + side : o2);
+        sw = sw + w;
+        // limits_from_tau: min_d = 1 - 0.8 tau, max_d = 1 + tau, shear = min(tau, 0.5 (0.98 - 0.8 tau)).
+        const V tau = load<V>(link_tau[a] + owner);
+        const V min_d = one - k08 * tau, max_d = one + tau;
+        const V cap = khalf * (k098 - k08 * tau);
+        const V shear = tau < cap ? tau : cap;
+        auto bound = [&](V& lo, V& hi, V pn, bool axial) {
+          V l, u;
+          if (axial) {
+            l = plus_side ? pn + min_d : pn - max_d;
+            u = plus_side ? pn + max_d : pn - min_d;
+          } else {
+            l = pn - shear;
+            u = pn + shear;
+          }
+          if constexpr (q < 2) {
+            l = missing ? minus_inf : l;
+            u = missing ? plus_inf : u;
+          }
+          lo = vmax(lo, l);
+          hi = vmin(hi, u);
+        };
+        bound(lo0, hi0, p0, a == 0);
+        bound(lo1, hi1, p1, a == 1);
+        bound(lo2, hi2, p2, a == 2);
+      };
+      neighbour.template operator()<0>(left + j, left + j);
+      neighbour.template operator()<1>(right + j, k);
+      if (AllRows || present[2]) neighbour.template operator()<2>(k - sy, k - sy);
+      if (AllRows || present[3]) neighbour.template operator()<3>(k + sy, k);
+      if (AllRows || present[4]) neighbour.template operator()<4>(k - sz, k - sz);
+      if (AllRows || present[5]) neighbour.template operator()<5>(k + sz, k);
+
+      const V t0 = relax_step(s0, sw, cur0, omega, limit_factor), t1 = relax_step(s1, sw, cur1, omega, limit_factor),
+              t2 = relax_step(s2, sw, cur2, omega, limit_factor);
+      // clampf, valid where lo <= hi
+      const V out0 = vmax(lo0, vmin(hi0, t0)), out1 = vmax(lo1, vmin(hi1, t1)), out2 = vmax(lo2, vmin(hi2, t2));
+      const V d0 = out0 - cur0, d1 = out1 - cur1, d2 = out2 - cur2;
+      // corr >= threshold exactly when corr^2 >= threshold_sq (RelaxContext::threshold_sq).
+      const V corr_sq = d0 * d0 + d1 * d1 + d2 * d2;
+      const M in_run = lane_index < splat<V>(static_cast<float>(i1 - j));
+      const M boxes_meet = ~(lo0 > hi0) & ~(lo1 > hi1) & ~(lo2 > hi2);
+      const M free = ((load_bytes<V>(flags + k) & static_cast<int>(kFixed)) == 0) & in_run;
+      const M apply = boxes_meet & free & (corr_sq >= threshold_sq) & (corr_sq != zero);
+      const unsigned applied = lane_bits<V>(apply), conflict = lane_bits<V>(free & ~boxes_meet);
+      // No branch on `applied`: on a CT a tenth of the vectors apply nothing, scattered.
+      if (j + N <= i1) {  // a full vector: every lane is this run's
+        store<V>(px + k, apply ? out0 : cur0);
+        store<V>(py + k, apply ? out1 : cur1);
+        store<V>(pz + k, apply ? out2 : cur2);
+        mark_columns(applied, j - col_base, col_shift, N, col_changed, true);
+      } else {  // the masked tail: lanes past the run may belong to another thread's run
+        store_lanes<V>(px + k, out0, applied);
+        store_lanes<V>(py + k, out1, applied);
+        store_lanes<V>(pz + k, out2, applied);
+        mark_columns(applied, j - col_base, col_shift, N, col_changed);
+      }
+      max_sq_v = vmax(max_sq_v, apply ? corr_sq : zero);
+      if (conflict)
+        for (int l = 0; l < N; ++l)
+          if (conflict >> l & 1u) scalar(j + l);
     }
-    max_sq_v = vmax(max_sq_v, apply ? corr_sq : zero);
-    if (conflict)
-      for (int l = 0; l < N; ++l)
-        if (conflict >> l & 1u) scalar(j + l);
   }
   // sqrtf is monotone, so the root of the largest square is the largest root.
   float max_sq = 0.0f;
@@ -175,13 +182,18 @@ float relax_span(const RelaxContext& c, const RelaxRun& r, const bool (&present)
   return max_corr;
 }
 
-/// The rule over one colour run (RelaxRun), interior rows through the unrolled kernel.
+/// The rule over one colour run (RelaxRun): interior rows of interior planes through the
+/// unrolled kernel, in one call; the lattice's border rows through the general one.
 template <class V>
 float relax_run(const RelaxContext& c, const RelaxRun& r) {
   const int ny = c.lay->dims.y, nz = c.lay->dims.z;
-  const bool present[6] = {true, true, r.y > 0, r.y + 1 < ny, r.z > 0, r.z + 1 < nz};
-  const bool all_rows = present[2] && present[3] && present[4] && present[5];
-  return all_rows ? relax_span<V, true>(c, r, present) : relax_span<V, false>(c, r, present);
+  if (r.z == 0 || r.z + 1 == nz) return relax_span<V, false>(c, r, r.y0, r.y1);
+  const int ya = std::max(r.y0, 1), yb = std::min(r.y1, ny - 1);
+  float m = 0.0f;
+  if (r.y0 < ya) m = std::max(m, relax_span<V, false>(c, r, r.y0, ya));
+  if (ya < yb) m = std::max(m, relax_span<V, true>(c, r, ya, yb));
+  if (yb < r.y1) m = std::max(m, relax_span<V, false>(c, r, yb, r.y1));
+  return m;
 }
 
 }  // namespace hpcm::cpu::simd
