@@ -120,22 +120,24 @@ void Relaxation::init(const solver::BrickGrid& grid, RelaxRunKernel kernel) {
 // one step behind, waiting only on that thread's progress counter (no barrier
 // at all, and no waiting on a thread that has not started: a thread that starts late simply
 // finds the work of the earlier phases done).
-bool Relaxation::cell_active(int p, int z, Index cell) const {
-  if (p < 2) {
-    if (start_[static_cast<std::size_t>(cell + cells_ * (z / grid_.size))]) return true;
-    if (p == 0) return false;
-  } else if (changed(p - 2, z, cell)) {
-    return true;
+void Relaxation::cells_to_process(int p, int z, std::uint8_t* active) const {
+  const Index n = cells_;
+  const int nbx = grid_.nb.x, nz = grid_.dims.z;
+  auto changed_in = [this](int q, int zz) { return changed_.data() + (static_cast<Index>(q) * grid_.dims.z + zz) * cells_; };
+  const std::uint8_t* first = p < 2 ? start_.data() + cells_ * (z / grid_.size) : changed_in(p - 2, z);
+  for (Index c = 0; c < n; ++c) active[c] = first[c];
+  if (p == 0) return;
+  // Byte-wise ORs over the whole plane (vectorised by the compiler) instead of a test per cell.
+  for (int zz = std::max(0, z - 1); zz <= std::min(nz - 1, z + 1); ++zz) {
+    const std::uint8_t* other = changed_in(p - 1, zz);
+    for (Index c = 0; c < n; ++c) active[c] |= other[c];
   }
-  const int bx = static_cast<int>(cell % grid_.nb.x), by = static_cast<int>(cell / grid_.nb.x);
-  for (int zz = std::max(0, z - 1); zz <= std::min(grid_.dims.z - 1, z + 1); ++zz) {
-    if (changed(p - 1, zz, cell)) return true;
-    if (zz != z) continue;
-    if ((bx > 0 && changed(p - 1, zz, cell - 1)) || (bx + 1 < grid_.nb.x && changed(p - 1, zz, cell + 1)) ||
-        (by > 0 && changed(p - 1, zz, cell - grid_.nb.x)) || (by + 1 < grid_.nb.y && changed(p - 1, zz, cell + grid_.nb.x)))
-      return true;
-  }
-  return false;
+  const std::uint8_t* same = changed_in(p - 1, z);
+  for (Index c = nbx; c < n; ++c) active[c] |= same[c - nbx];  // the -y neighbour
+  for (Index c = 0; c + nbx < n; ++c) active[c] |= same[c + nbx];  // the +y neighbour
+  for (Index row = 0; row < n; row += nbx)  // -x and +x, within the brick row
+    for (int bx = 0; bx < nbx; ++bx)
+      active[row + bx] |= static_cast<std::uint8_t>((bx > 0 ? same[row + bx - 1] : 0) | (bx + 1 < nbx ? same[row + bx + 1] : 0));
 }
 
 float Relaxation::phase(const RelaxContext& ctx, int p, int z, bool prefetch, Index& active_cells) {
@@ -143,17 +145,21 @@ float Relaxation::phase(const RelaxContext& ctx, int p, int z, bool prefetch, In
   const int B = grid_.size, colour = p & 1;
   const Int3 nb = grid_.nb;
   std::uint8_t* ch = changed_.data() + (static_cast<Index>(p) * grid_.dims.z + z) * cells_;
+  thread_local std::vector<std::uint8_t> active;  // per thread: phases run concurrently
+  active.resize(static_cast<std::size_t>(cells_));
+  cells_to_process(p, z, active.data());
+  auto cell_active = [&](Index cell) { return active[static_cast<std::size_t>(cell)] != 0; };
   float mc = 0.0f;
   for (int by = 0; by < nb.y; ++by) {
     const Index row = static_cast<Index>(by) * nb.x;
     const int y1 = std::min((by + 1) * B, L.dims.y);
     for (int bx = 0; bx < nb.x;) {
-      if (!cell_active(p, z, row + bx)) {
+      if (!cell_active(row + bx)) {
         ++bx;
         continue;
       }
       int end = bx + 1;
-      while (end < nb.x && cell_active(p, z, row + end)) ++end;
+      while (end < nb.x && cell_active(row + end)) ++end;
       active_cells += end - bx;
       for (int c = bx; c < end; ++c)  // several threads may mark one brick: atomic, relaxed
         std::atomic_ref<std::uint8_t>(worked_[row + c + cells_ * (z / B)]).store(1, std::memory_order_relaxed);

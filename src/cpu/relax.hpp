@@ -68,10 +68,8 @@ class Relaxation {
                  std::vector<std::uint8_t>& touched, std::vector<std::uint8_t>& worked, WorkerPool& pool);
 
  private:
-  bool changed(int p, int z, Index cell) const {
-    return changed_[static_cast<std::size_t>((static_cast<Index>(p) * grid_.dims.z + z) * cells_ + cell)] != 0;
-  }
-  bool cell_active(int p, int z, Index cell) const;
+  /// Per cell of plane z, whether phase p must process it (see the schedule in relax.cpp).
+  void cells_to_process(int p, int z, std::uint8_t* active) const;
   /// One phase over plane z; `prefetch`: the thread's first pass over that plane this frame.
   float phase(const RelaxContext& ctx, int p, int z, bool prefetch, Index& active_cells);
   std::uint8_t* worked_ = nullptr;  ///< per brick, during run()
