@@ -5,7 +5,9 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <queue>
+#include <array>
+#include <cstdint>
+#include <cstring>
 #include <utility>
 
 #include "solver/neighbours.hpp"
@@ -42,6 +44,55 @@ double slack_from(const LinkLimits& L, int a, int side, int b) {
   return side > 0 ? static_cast<double>(L.max_d) - 1.0 : 1.0 - static_cast<double>(L.min_d);
 }
 
+/// Dijkstra's priority queue as a radix heap: the keys popped never decrease (the slacks are
+/// >= 0), so an entry is filed by the highest bit in which its key differs from the last key
+/// popped, and only the lowest non-empty bucket is ever sorted out again. Keys are the doubles'
+/// bit patterns mapped to unsigned integers in the same order. Much cheaper per entry than a
+/// binary heap of a million entries; the distances found are the same (ties may pop in another
+/// order, which changes no minimum).
+class RadixHeap {
+ public:
+  using Entry = std::pair<double, Index>;
+  bool empty() const { return size_ == 0; }
+  void push(double d, Index e) {
+    buckets_[static_cast<std::size_t>(bucket(ordered(d)))].push_back({d, e});
+    ++size_;
+  }
+  /// An entry of the smallest key (the queue must not be empty).
+  Entry pop() {
+    if (buckets_[0].empty()) {
+      std::size_t b = 1;
+      while (buckets_[b].empty()) ++b;
+      std::uint64_t least = ~std::uint64_t{0};
+      for (const Entry& x : buckets_[b]) least = std::min(least, ordered(x.first));
+      last_ = least;
+      for (const Entry& x : buckets_[b]) buckets_[static_cast<std::size_t>(bucket(ordered(x.first)))].push_back(x);
+      buckets_[b].clear();
+    }
+    const Entry top = buckets_[0].back();
+    buckets_[0].pop_back();
+    --size_;
+    return top;
+  }
+  void clear() {
+    for (auto& b : buckets_) b.clear();
+    last_ = 0;
+    size_ = 0;
+  }
+
+ private:
+  /// Order-preserving map of a double (not NaN) to an unsigned integer.
+  static std::uint64_t ordered(double d) {
+    std::uint64_t u;
+    std::memcpy(&u, &d, sizeof u);
+    return (u >> 63) ? ~u : u | (std::uint64_t{1} << 63);
+  }
+  int bucket(std::uint64_t key) const { return key == last_ ? 0 : 64 - __builtin_clzll(key ^ last_); }
+  std::array<std::vector<Entry>, 65> buckets_;
+  std::uint64_t last_ = 0;
+  std::size_t size_ = 0;
+};
+
 struct Search {
   const Model& m;
   const std::vector<std::uint8_t>& anchored;
@@ -49,6 +100,7 @@ struct Search {
   std::vector<double> dist;
   std::vector<Index> seen;
   float margin;
+  RadixHeap heap;
 
   /// Smallest (start_g + shortest slack path to an anchor or to the wall) over the grabbed
   /// elements on axis b. forward: paths follow d_next <= d_cur + slack (the lower bound of
@@ -56,23 +108,22 @@ struct Search {
   double run(const std::vector<Index>& starts, const std::vector<double>& start_dist, int b, bool forward) {
     for (Index i : seen) dist[static_cast<std::size_t>(i)] = kInfD;
     seen.clear();
-    using Entry = std::pair<double, Index>;
-    std::priority_queue<Entry, std::vector<Entry>, std::greater<Entry>> heap;
+    heap.clear();
     for (std::size_t k = 0; k < starts.size(); ++k) {
       const Index g = starts[k];
       if (start_dist[k] < dist[static_cast<std::size_t>(g)]) {
         if (dist[static_cast<std::size_t>(g)] == kInfD) seen.push_back(g);
         dist[static_cast<std::size_t>(g)] = start_dist[k];
-        heap.push({start_dist[k], g});
+        heap.push(start_dist[k], g);
       }
     }
     const int n_b = b == 0 ? m.dims.x : (b == 1 ? m.dims.y : m.dims.z);
     double best = kInfD;
     while (!heap.empty()) {
       // Named copies, not a structured binding: the lambda below captures d (clang 14 rejects that).
-      const double d = heap.top().first;
-      const Index e = heap.top().second;
-      heap.pop();
+      const RadixHeap::Entry top = heap.pop();
+      const double d = top.first;
+      const Index e = top.second;
       if (d > dist[static_cast<std::size_t>(e)]) continue;
       if (d >= best) break;
       const Int3 c = m.coords(e);
@@ -90,7 +141,7 @@ struct Search {
         if (nd < dist[static_cast<std::size_t>(n)]) {
           if (dist[static_cast<std::size_t>(n)] == kInfD) seen.push_back(n);
           dist[static_cast<std::size_t>(n)] = nd;
-          heap.push({nd, n});
+          heap.push(nd, n);
         }
       });
     }
@@ -113,7 +164,7 @@ ToolLimit tool_limit(const Model& m, const std::vector<Index>& grabbed, const st
 #pragma omp parallel num_threads(threads)
   {
     Search s{m, anchored, std::vector<std::uint8_t>(static_cast<std::size_t>(m.size()), 0),
-             std::vector<double>(static_cast<std::size_t>(m.size()), kInfD), {}, margin};
+             std::vector<double>(static_cast<std::size_t>(m.size()), kInfD), {}, margin, {}};
     for (Index g : grabbed) s.grabbed[static_cast<std::size_t>(g)] = 1;
 #pragma omp for schedule(dynamic, 1)
     for (int task = 0; task < 6; ++task) {
