@@ -12,7 +12,6 @@
 // The last vector of a run is masked; its loads may run past the run into the storage's padding.
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 
 #include "cpu/relax.hpp"
 #include "cpu/simd.hpp"
