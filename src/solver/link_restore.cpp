@@ -58,6 +58,7 @@ void LinkRestorer::init(const Model& m) {
 
 void LinkRestorer::pass(const Model& m, const RestoreAccess& pos, int b, int k, float wall_lo, float wall_hi,
                         bool upper, const std::vector<Index>& seeds) {
+  const bool inward = rounds_inward(std::max(-wall_lo, wall_hi));
   queue_.clear();
   for (Index e : seeds)
     if (!queued_[e] && !pos.fixed(e)) {
@@ -72,7 +73,7 @@ void LinkRestorer::pass(const Model& m, const RestoreAccess& pos, int b, int k, 
     const Int3 c = m.coords(e);
     float bound = upper ? wall_hi : wall_lo;
     for_each_face_neighbour(m, c.x, c.y, c.z, e, [&](Index n, int a, int side, const LinkLimits& L) {
-      const float lb = link_bound(value(pos, b, k, n), L, a, side, b, upper);
+      const float lb = link_bound(value(pos, b, k, n), L, a, side, b, upper, inward);
       bound = upper ? (lb < bound ? lb : bound) : (lb > bound ? lb : bound);
     });
     float& x = value(pos, b, k, e);
@@ -111,8 +112,9 @@ void LinkRestorer::restore(const Model& m, const BrickGrid& grid, const std::vec
     pass(m, pos, b, 0, wall.lo[b], wall.hi[b], false, pass_seeds_);
     pass(m, pos, b, 1, wall.lo[b], wall.hi[b], true, pass_seeds_);
     // The midpoints, then lower and raise once more from them (copy 0): rounding a midpoint can
-    // leave a link a float step and a half outside its box; these passes move such elements by
-    // a float step or so and leave every link within half a float step (restore.hpp).
+    // leave a link a float step or so outside its box; these passes move such elements by about
+    // that much and put every link they touch back (exactly inside its box where the axis
+    // rounds inward, restore.hpp).
     // Seeded with every changed element and its neighbours (either end of a link may have to
     // move); a seed listed twice is queued once.
     auto changed_and_neighbours = [&] {

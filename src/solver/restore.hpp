@@ -14,9 +14,10 @@
 // Because the FIXED elements are mutually consistent (the tool is limited, solver/tool_limit),
 // raise(lower(x)) and lower(raise(x)) are both consistent and keep every FIXED element; their
 // midpoint is consistent too (the feasible set is convex) and has no bias toward either
-// direction. The midpoint is rounded, which can leave a link a float step and a half outside its
-// box, so a last lower and raise pass from the midpoints brings every link back to within the
-// rounding of one bound (half a float step).
+// direction. The midpoint is rounded, which can leave a link slightly outside its box, so a last
+// lower and raise pass from the midpoints puts every link back: within half a float step of a
+// coordinate below 128 (the bounds rounded to nearest), exactly inside its box on axes that
+// reach further (the bounds rounded toward the inside, link_bound).
 // Each pass is a monotone fixed-point iteration, so its result does not depend on the order in
 // which elements are visited: any schedule (sequential work list, parallel chaotic sweeps on
 // the GPU) gives the same floats.
@@ -26,24 +27,52 @@
 namespace hpcm::solver {
 
 /// Links (and boundary-box excursions) beyond this are restored. Well below the 1e-5 of the
-/// integrity check, above the rounding of the clamps themselves (half an ulp of a coordinate
-/// below 128 is at most 3.8e-6), so a restored link is not found violated again.
+/// integrity check; above half a float step of a coordinate below 128 (3.8e-6), so the rounding
+/// of the clamps does not call the restoration there (nor finds a restored link violated again).
+/// Further out it does, and the restoration leaves those links exactly in their boxes.
 inline constexpr float kRestoreTolerance = 4e-6f;
 
+/// Whether coordinate x of element e on axis b keeps e's link to neighbour n (coordinate cn on
+/// that axis) inside the link's box, by the same float arithmetic as link_violation.
+HPCM_HD inline bool link_holds(float x, float cn, const LinkLimits& L, int a, int side, int b) {
+  if (b != a) {
+    const float d = x - cn;
+    return (d < 0 ? -d : d) <= L.shear;
+  }
+  const float d = side > 0 ? x - cn : cn - x;  // the link's + end minus its - end
+  return d >= L.min_d && d <= L.max_d;
+}
+
+/// One float step above coordinate c >= 0 (NaN for an infinite c).
+HPCM_HD inline float float_step_above(float c) { return nextafterf(c, INFINITY) - c; }
+
+/// Whether the restoration rounds the box limits on an axis whose coordinates reach `largest`
+/// (in magnitude) toward the inside of the box. Rounded to nearest, a limit can lie half a float
+/// step outside the box: at most 3.8e-6 below coordinate 128, within the restoration's tolerance,
+/// so those axes keep the nearest rounding the propagation and the relaxation use; from 128 on
+/// (7.6e-6, 1.5e-5 beyond 256) a restored link could stay beyond the tolerance or the integrity
+/// check's 1e-5, so those axes round inward. An unbounded axis rounds inward.
+HPCM_HD inline bool rounds_inward(float largest) { return !(0.5f * float_step_above(largest) <= kRestoreTolerance); }
+
 /// The bound that neighbour n (coordinate cn on axis b) puts on an element through their link:
-/// the upper end of the link's interval (upper) or its lower end. Same floats as link_interval,
-/// so the propagation's clamp and the restoration agree on every box. Rounded to nearest, so a
-/// pass leaves a link at most half a float step outside its box (3.8e-6 below coordinate 128,
-/// 7.6e-6 below 256). Rounding toward the inside of the box was tried: at the tool limit the
-/// chain of links between the tool and an anchor is stretched exactly to its slack, and boxes
-/// tightened by a float step each can no longer all be met (3.1e-5 measured on the DICOM
-/// series at downsample 2).
-HPCM_HD inline float link_bound(float cn, const LinkLimits& L, int a, int side, int b, bool upper) {
+/// the upper end of the link's interval (upper) or its lower end, as link_interval computes it
+/// (the same floats as the propagation's clamp). With `inward`, it is then moved a float step at
+/// a time toward the inside of the box until the link check itself holds there, so a pass leaves
+/// every link it touches exactly inside its box, however far from the origin. Tightening a box
+/// by up to a float step is what lets that fail at the tool limit, where the chain between the
+/// tool and an anchor is stretched to its slack: the tool limit reserves two float steps per
+/// link on such axes for it (solver/tool_limit.cpp).
+HPCM_HD inline float link_bound(float cn, const LinkLimits& L, int a, int side, int b, bool upper, bool inward) {
   Vec3 pn{};
   pn[b] = cn;
   float lo, hi;
   link_interval(pn, L, a, side, b, lo, hi);
-  return upper ? hi : lo;
+  float bound = upper ? hi : lo;
+  // Rounded to nearest, the bound is at most half a float step outside (one step inward suffices;
+  // the loop allows for an inexact subtraction where cn and the bound differ in magnitude).
+  if (inward)
+    for (int k = 0; k < 4 && !link_holds(bound, cn, L, a, side, b); ++k) bound = nextafterf(bound, upper ? -INFINITY : INFINITY);
+  return bound;
 }
 
 /// One element of a pass: the coordinate moved to the bound when it lies beyond it.

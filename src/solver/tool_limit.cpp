@@ -11,6 +11,7 @@
 #include <utility>
 
 #include "solver/neighbours.hpp"
+#include "solver/restore.hpp"
 
 namespace hpcm::solver {
 
@@ -42,6 +43,14 @@ double slack_to(const LinkLimits& L, int a, int side, int b) {
 double slack_from(const LinkLimits& L, int a, int side, int b) {
   if (a != b) return L.shear;
   return side > 0 ? static_cast<double>(L.max_d) - 1.0 : 1.0 - static_cast<double>(L.min_d);
+}
+
+/// The rounding the restoration may take from each link on an axis of n elements: one float step
+/// of the axis's largest coordinate (n + margin, beyond the wall at n - 1 + margin) where it rounds
+/// box limits inward (solver/restore.hpp, rounds_inward), none where it rounds to nearest.
+double inward_rounding_on_axis(int n, float margin) {
+  if (!rounds_inward(static_cast<float>(n - 1) + margin)) return 0.0;
+  return static_cast<double>(float_step_above(static_cast<float>(n) + margin));
 }
 
 /// Dijkstra's priority queue as a radix heap: the keys popped never decrease (the slacks are
@@ -102,6 +111,14 @@ struct Search {
   float margin;
   RadixHeap heap;
 
+  /// Slack left to a link after the restoration's rounding: on axes of 128 cells and more it
+  /// rounds every box limit toward the inside, by less than a float step of the coordinate
+  /// (solver/restore.hpp, link_bound), so a chain stretched to its exact slack could not be met
+  /// in floats. Two float steps of the axis's largest coordinate per link keep every chain the
+  /// tool may stretch feasible after rounding (3e-5 cells per link up to 256; never below zero,
+  /// which the search's radix heap needs).
+  static double usable(double slack, double float_step) { return std::max(0.0, slack - 2.0 * float_step); }
+
   /// Smallest (start_g + shortest slack path to an anchor or to the wall) over the grabbed
   /// elements on axis b. forward: paths follow d_next <= d_cur + slack (the lower bound of
   /// the tool); otherwise the reversed edges (the upper bound).
@@ -118,6 +135,7 @@ struct Search {
       }
     }
     const int n_b = b == 0 ? m.dims.x : (b == 1 ? m.dims.y : m.dims.z);
+    const double step = inward_rounding_on_axis(n_b, margin);
     double best = kInfD;
     while (!heap.empty()) {
       // Named copies, not a structured binding: the lambda below captures d (clang 14 rejects that).
@@ -137,7 +155,7 @@ struct Search {
       best = std::min(best, d + wall);
       for_each_face_neighbour(m, c.x, c.y, c.z, e, [&](Index n, int a, int side, const LinkLimits& L) {
         if (grabbed[static_cast<std::size_t>(n)]) return;
-        const double nd = d + (forward ? slack_to(L, a, side, b) : slack_from(L, a, side, b));
+        const double nd = d + usable(forward ? slack_to(L, a, side, b) : slack_from(L, a, side, b), step);
         if (nd < dist[static_cast<std::size_t>(n)]) {
           if (dist[static_cast<std::size_t>(n)] == kInfD) seen.push_back(n);
           dist[static_cast<std::size_t>(n)] = nd;
@@ -180,10 +198,18 @@ ToolLimit tool_limit(const Model& m, const std::vector<Index>& grabbed, const st
       bound[b][upper ? 0 : 1] = s.run(grabbed, start, b, !upper);
     }
   }
+  const int n[3] = {m.dims.x, m.dims.y, m.dims.z};
   for (int b = 0; b < 3; ++b) {
-    // Rounded inwards so that a clamped offset is met after float rounding of the targets.
-    lim.hi[b] = std::nextafter(static_cast<float>(std::min(bound[b][0], 1e30)), -INFINITY);
-    lim.lo[b] = std::nextafter(static_cast<float>(-std::min(bound[b][1], 1e30)), INFINITY);
+    // A grabbed element's position (origin + offset) is rounded to the coordinate's float grid:
+    // on an axis that rounds inward, one more float step keeps it feasible (a grab at the wall
+    // has no link to spare). Then rounded inwards so that a clamped offset is met after float
+    // rounding of the targets.
+    // Offset 0 stays allowed where the search allows it: the grabbed elements then stay where
+    // they are, with no rounding to allow for (a grab at rest on the wall with margin 0).
+    const double step = inward_rounding_on_axis(n[b], margin);
+    const auto below = [](double v) { return std::nextafter(static_cast<float>(std::min(v, 1e30)), -INFINITY); };
+    lim.hi[b] = std::max(below(bound[b][0] - step), std::min(below(bound[b][0]), 0.0f));
+    lim.lo[b] = -std::max(below(bound[b][1] - step), std::min(below(bound[b][1]), 0.0f));
   }
   return lim;
 }
