@@ -90,7 +90,7 @@ __global__ void k_full_reset(Lattice L) {
   for (long long i = global_id(); i < L.n; i += static_cast<long long>(gridDim.x) * blockDim.x) full_reset_element(L, i);
 }
 __global__ void k_relax_begin(RelaxArgs a) {
-  const int n = a.sweeps > 1 ? a.sweeps : 1;
+  const int n = relax_begin_threads(a);
   for (int j = static_cast<int>(threadIdx.x); j < n; j += static_cast<int>(blockDim.x)) relax_begin_thread(a, j);
 }
 __global__ void k_relax_start(RelaxArgs a) { relax_start_thread(a, global_id()); }
@@ -113,6 +113,10 @@ __global__ void __launch_bounds__(kReduceThreads) k_speed_sum(LayerArgs a) {
   __shared__ SpeedShared sh;
   DevBlock b;
   speed_sum_block(a, sh, b);
+}
+__global__ void __launch_bounds__(kBrickThreads) k_check_links(CheckArgs a) {
+  DevBlock b;
+  check_links_block(a, static_cast<long long>(blockIdx.x), b);
 }
 __global__ void k_probe() {}
 
@@ -232,6 +236,10 @@ class GpuExec {
       it = graphs_.emplace(a.sweeps, ex).first;
     }
     HPCM_CUDA(cudaGraphLaunch(it->second, stream_));
+  }
+  void check_links(const CheckArgs& a) {
+    k_check_links<<<static_cast<unsigned>(a.L.grid.count), kBrickThreads, 0, stream_>>>(a);
+    HPCM_LAUNCHED("k_check_links");
   }
   void layer(const LayerArgs& a) {
     k_layer<<<static_cast<unsigned>(a.L.grid.count), kBrickThreads, 0, stream_>>>(a);

@@ -28,6 +28,7 @@ struct Ctl {
   PropCtl prop;
   RelaxCtl relax;
   LayerCtl layer;
+  int links_outside;  ///< the device's link check found work for the restoration
 };
 
 /// Largest propagation list capacities (entries): pend + 6 * list < 2^31 (int counters).
@@ -110,6 +111,7 @@ class DeviceBackend final : public Backend {
     save_touched_ = alloc<std::uint8_t>(NB, "brick flags");
     save_hot_ = alloc<std::uint8_t>(NB, "brick flags");
     relax_list_ = alloc<int>(NB, "relaxation brick list");
+    check_bricks_ = alloc<std::uint8_t>(NB, "brick flags");
     part_sum_ = alloc<float>(NB * kTissueCount, "speed partials");
     part_max_ = alloc<float>(NB * kTissueCount, "speed partials");
     part_moved_ = alloc<int>(NB, "speed partials");
@@ -282,27 +284,34 @@ class DeviceBackend final : public Backend {
   }
 
   /// The link restoration runs on a host copy with the host schedule (solver::LinkRestorer),
-  /// so it computes exactly the CPU backend's floats; it costs a download of the positions
-  /// and flags in frames where something moved. A device schedule is future work.
+  /// so it computes exactly the CPU backend's floats. The device first runs the host's check
+  /// (check_links_block): in most frames it finds nothing, and nothing is downloaded. Otherwise
+  /// the positions are downloaded and the host check runs only on the bricks the device found
+  /// (find_violations attributes each violation to the brick of its element, so it finds the
+  /// same seeds and statistics as over every changed brick). A device schedule of the
+  /// restoration itself is future work.
   RestoreStats restore_links() override {
     const std::size_t N = static_cast<std::size_t>(L_.n), NB = static_cast<std::size_t>(L_.grid.count);
-    host_unchecked_.resize(NB);
-    host_touched_.resize(NB);
-    x_.download(host_unchecked_.data(), L_.unchecked, NB);
-    x_.download(host_touched_.data(), L_.touched, NB);
+    CheckArgs ca;
+    ca.L = L_;
+    ca.wall = wall_;
+    ca.found = &ctl_->links_outside;
+    ca.bricks = check_bricks_;
+    x_.zero(ca.found, sizeof(int));
+    x_.zero(ca.bricks, NB);
+    x_.check_links(ca);
+    x_.zero(L_.unchecked, NB);
+    x_.download(&host_ctl_->links_outside, ca.found, sizeof(int));
     x_.sync();
-    bool any = false;
-    for (std::size_t b = 0; b < NB; ++b) {
-      host_unchecked_[b] = static_cast<std::uint8_t>(host_unchecked_[b] | host_touched_[b]);
-      any = any || host_unchecked_[b];
-    }
-    if (!any) return {};
-    L_.grid.dilate_to_list(host_unchecked_, check_list_);
+    if (!host_ctl_->links_outside) return {};
+    host_bricks_.resize(NB);
     host_pos_.resize(N);
     host_flags_.resize(N);
+    x_.download(host_bricks_.data(), check_bricks_, NB);
     x_.download(host_pos_.data(), L_.pos, N * sizeof(Vec3));
     x_.download(host_flags_.data(), L_.flags, N);
     x_.sync();
+    solver::BrickGrid::to_list(host_bricks_, check_list_);
     if (!restorer_ready_) {
       restorer_.init(*m_);
       restorer_ready_ = true;
@@ -315,15 +324,14 @@ class DeviceBackend final : public Backend {
     restorer_.restore(*m_, L_.grid, seeds_, access, wall_, moved, st);
     if (st.moved > 0) {
       x_.upload(L_.pos, host_pos_.data(), N * sizeof(Vec3));
-      for (std::size_t b = 0; b < NB; ++b) host_touched_[b] = static_cast<std::uint8_t>(host_touched_[b] | moved[b]);
-      x_.upload(L_.touched, host_touched_.data(), NB);
-      host_hot_.resize(NB);
-      x_.download(host_hot_.data(), L_.hot, NB);
-      x_.sync();
-      for (std::size_t b = 0; b < NB; ++b) host_hot_[b] = static_cast<std::uint8_t>(host_hot_[b] | moved[b]);
-      x_.upload(L_.hot, host_hot_.data(), NB);
+      // The moved bricks become touched (velocity layer) and hot (next relaxation).
+      for (std::uint8_t* flags : {L_.touched, L_.hot}) {
+        x_.download(host_bricks_.data(), flags, NB);
+        x_.sync();
+        for (std::size_t b = 0; b < NB; ++b) host_bricks_[b] = static_cast<std::uint8_t>(host_bricks_[b] | moved[b]);
+        x_.upload(flags, host_bricks_.data(), NB);
+      }
     }
-    x_.zero(L_.unchecked, NB);
     return st;
   }
 
@@ -542,7 +550,7 @@ class DeviceBackend final : public Backend {
   solver::Wall wall_;
   bool restorer_ready_ = false;
   std::vector<Vec3> host_pos_;
-  std::vector<std::uint8_t> host_flags_, host_unchecked_, host_touched_, host_hot_;
+  std::vector<std::uint8_t> host_flags_, host_bricks_;
   std::vector<Index> check_list_, seeds_;
   /// The restoration's view of the host copy (linear order).
   struct HostAccess final : solver::RestoreAccess {
@@ -559,6 +567,7 @@ class DeviceBackend final : public Backend {
   Ctl* host_ctl_ = nullptr;
   std::uint8_t *save_touched_ = nullptr, *save_hot_ = nullptr;
   int* relax_list_ = nullptr;
+  std::uint8_t* check_bricks_ = nullptr;  ///< per brick: the link check found work there
   std::uint8_t* relax_start_ = nullptr;
   std::uint8_t* relax_phase_[3] = {nullptr, nullptr, nullptr};
   float *part_sum_ = nullptr, *part_max_ = nullptr;

@@ -79,7 +79,7 @@ class EmuExec {
     for (long long i = 0; i < L.n; ++i) full_reset_element(L, i);
   }
   void relax(const RelaxArgs& a) {
-    for (int j = 0; j < std::max(2 * a.sweeps, 1); ++j) relax_begin_thread(a, j);
+    for (int j = 0; j < relax_begin_threads(a); ++j) relax_begin_thread(a, j);
     for (long long br = 0; br < a.L.grid.count; ++br) relax_start_thread(a, br);
     for (int p = 0; p < 2 * a.sweeps; ++p) {
       for (long long br = 0; br < a.L.grid.count; ++br) relax_list_thread(a, p, br);
@@ -91,6 +91,12 @@ class EmuExec {
       relax_end_thread(a, p);
     }
     for (long long br = 0; br < a.L.grid.count; ++br) relax_finish_thread(a, br);
+  }
+  void check_links(const CheckArgs& a) {
+    for (long long br = 0; br < a.L.grid.count; ++br) {
+      HostBlock b{kBrickT, static_cast<int>(br), static_cast<int>(a.L.grid.count)};
+      check_links_block(a, br, b);
+    }
   }
   void layer(const LayerArgs& a) {
     auto sh = std::make_unique<LayerShared>();

@@ -18,6 +18,7 @@
 #include "hpcm/state.hpp"
 #include "solver/bricks.hpp"
 #include "solver/neighbours.hpp"
+#include "solver/restore.hpp"
 #include "solver/rules.hpp"
 
 namespace hpcm::gpu {
@@ -261,8 +262,10 @@ HPCM_HD inline void pend_put(const PropArgs& a, PropShared& sh, int e, unsigned 
   }
 }
 
-/// push_neighbours of propagate.cpp. Pushes into buckets <= `processed` are dropped: the CPU
-/// files them into buckets its loop has already passed, which are never processed again.
+/// push_neighbours of propagate.cpp. Pushes into buckets below `processed` are dropped: the CPU
+/// files them into buckets its loop has already passed, which are never processed again. A
+/// push into bucket `processed` itself (float rounding of t + w) is kept: the CPU decides that
+/// bucket again before moving on, and so does the next round here (its smallest bucket).
 HPCM_HD inline void push_neighbours(const PropArgs& a, PropShared& sh, long long i, float t, long long processed) {
   const Lattice& L = a.L;
   int x, y, z;
@@ -271,7 +274,7 @@ HPCM_HD inline void push_neighbours(const PropArgs& a, PropShared& sh, long long
     if (L.flags[n] & (kFinalBit | kFixed)) return;
     const float c = t + L.link_of(axis, lo, hi).w;
     const unsigned long long b = bucket_of(c, a.delta);
-    if (processed >= 0 && b <= static_cast<unsigned long long>(processed)) return;
+    if (processed >= 0 && b < static_cast<unsigned long long>(processed)) return;
     pend_put(a, sh, static_cast<int>(n), b);
   });
 }
@@ -497,7 +500,10 @@ struct RelaxShared {
   unsigned maxc;
 };
 
-/// Relaxation start, thread per index < 2K.
+/// Threads relax_begin_thread needs: one per phase counter (2K), at least one.
+HPCM_HD inline int relax_begin_threads(const RelaxArgs& a) { return a.sweeps > 0 ? 2 * a.sweeps : 1; }
+
+/// Relaxation start, thread per index < relax_begin_threads(a).
 HPCM_HD inline void relax_begin_thread(const RelaxArgs& a, int j) {
   if (j < 2 * a.sweeps) {
     a.ctl->count[j] = 0;
@@ -610,6 +616,55 @@ HPCM_HD inline void relax_finish_thread(const RelaxArgs& a, long long b) {
   if (b >= a.L.grid.count) return;
   const int P = 2 * a.sweeps;
   a.L.hot[b] = a.ctl->stop >= P && P >= 2 && (a.phase[(P - 1) % 3][b] || a.phase[(P - 2) % 3][b]) ? 1 : 0;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Link check before the restoration: solver::find_violations' test on the device
+// ---------------------------------------------------------------------------------------------
+
+/// The restoration (host, solver::LinkRestorer) needs the positions on the host. Most frames
+/// leave every link in its box, so the device first asks whether the host's check would find
+/// anything: the same bricks (changed since the last check, or a face neighbour of one), the
+/// same test per element (outside the wall, or a + link outside its box by more than
+/// kRestoreTolerance) with the same float operations. Only when it does are the positions
+/// downloaded, and the host checks only the bricks flagged here.
+struct CheckArgs {
+  Lattice L;
+  solver::Wall wall;
+  int* found = nullptr;             ///< set to 1 when some element or link fails the test
+  std::uint8_t* bricks = nullptr;   ///< per brick: set to 1 when one of its elements fails it
+};
+
+template <class B>
+HPCM_HD void check_links_block(const CheckArgs& a, long long b, B& blk) {
+  const Lattice& L = a.L;
+  if (!L.grid.flagged_or_face_neighbour(L.unchecked, b) && !L.grid.flagged_or_face_neighbour(L.touched, b)) return;
+  int lo[3], hi[3];
+  L.brick_range(b, lo, hi);
+  const int bs = L.grid.size, per = bs * bs * bs;
+  const int d[3] = {L.nx, L.ny, L.nz};
+  const long long stride[3] = {1, L.nx, static_cast<long long>(L.nx) * L.ny};
+  const int T = blk.threads();
+  blk.each([&](int tid) {
+    bool found = false;
+    for (int q = tid; q < per && !found; q += T) {
+      const int c[3] = {lo[0] + q % bs, lo[1] + (q / bs) % bs, lo[2] + q / (bs * bs)};
+      if (c[0] >= hi[0] || c[1] >= hi[1] || c[2] >= hi[2]) continue;
+      const long long e = L.index(c[0], c[1], c[2]);
+      const Vec3 pe = L.pos[e];
+      for (int ax = 0; ax < 3; ++ax) {
+        const float below = a.wall.lo[ax] - pe[ax], above = pe[ax] - a.wall.hi[ax];
+        if ((below < above ? above : below) > solver::kRestoreTolerance) found = true;
+        if (c[ax] + 1 >= d[ax]) continue;
+        const long long n = e + stride[ax];
+        if (link_violation(pe, L.pos[n], L.link_of(ax, e, n), ax) > solver::kRestoreTolerance) found = true;
+      }
+    }
+    if (found) {  // every writer stores the same value
+      *a.found = 1;
+      a.bricks[b] = 1;
+    }
+  });
 }
 
 // ---------------------------------------------------------------------------------------------

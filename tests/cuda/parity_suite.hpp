@@ -165,6 +165,45 @@ inline void check_waves(const Factory& make_device, const Model& m, const Params
   std::printf("[parity] %s: %d waves, max |dx| %.3g, max |dt| %.3g\n", what.c_str(), waves, worst_p, worst_t);
 }
 
+/// The link restoration through the Backend interface: a loaded state with links stretched,
+/// squeezed and sheared out of their boxes and elements beyond the boundary box must give the
+/// same violations and the same restored floats on both backends; the rest state must be left
+/// alone by both.
+inline void check_restore(const Factory& make_device, const Model& m, const Params& p, std::uint64_t seed,
+                          const std::string& what) {
+  std::mt19937_64 rng(seed);
+  std::uniform_int_distribution<Index> pick(0, m.size() - 1);
+  std::uniform_real_distribution<float> U(-1.5f, 1.5f);
+  State broken = State::rest(m);
+  for (int k = 0; k < 40; ++k) {
+    const auto i = static_cast<std::size_t>(pick(rng));
+    broken.pos[i] = broken.pos[i] + Vec3{U(rng), U(rng), U(rng)};
+  }
+  broken.pos[static_cast<std::size_t>(pick(rng))].x = -3.0f;  // beyond the boundary box
+  for (const bool with_violations : {true, false}) {
+    SCOPED_TRACE(what + (with_violations ? ", broken links" : ", rest state"));
+    const State s = with_violations ? broken : State::rest(m);
+    auto cpu = make_backend(BackendKind::Cpu);
+    auto dev = make_device();
+    cpu->load(m, p, s);
+    dev->load(m, p, s);
+    const RestoreStats rc = cpu->restore_links(), rd = dev->restore_links();
+    EXPECT_EQ(rc.violated_links, rd.violated_links);
+    EXPECT_EQ(rc.max_violation, rd.max_violation);
+    EXPECT_EQ(rc.moved, rd.moved);
+    if (with_violations) {
+      EXPECT_GT(rc.violated_links, 0) << "the broken state must have links outside their boxes";
+      EXPECT_GT(rc.moved, 0);
+    } else {
+      EXPECT_EQ(rc.violated_links, 0);
+    }
+    std::vector<Vec3> xc, xd;
+    cpu->download_positions(xc);
+    dev->download_positions(xd);
+    EXPECT_EQ(max_diff(xc, xd), 0.0f) << "restored positions";
+  }
+}
+
 /// The full frame pipeline (Simulation) on both backends, frame by frame.
 inline void check_pipeline(const Factory& make_device, const Model& m, const Params& p, const Scenario& sc, int frames,
                            const std::string& what) {

@@ -60,6 +60,13 @@ TEST(CudaParity, PropagationListsGrowOnOverflow) {
   check_waves(cuda(), m, with_mode(p, DampingMode::None), 9, 3, "stiff uniform lattice");
 }
 
+TEST(CudaParity, LinkRestoration) {
+  REQUIRE_CUDA();
+  const Params p;
+  check_restore(cuda(), phantom_model({48, 48, 32}, p), p, 3, "phantom 48x48x32");
+  check_restore(cuda(), random_model({37, 29, 23}, 4, p), p, 4, "random lattice");
+}
+
 TEST(CudaParity, PipelinePaperProtocolABC) {
   REQUIRE_CUDA();
   const Params p;
