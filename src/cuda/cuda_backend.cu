@@ -118,6 +118,7 @@ __global__ void __launch_bounds__(kBrickThreads) k_check_links(CheckArgs a) {
   DevBlock b;
   check_links_block(a, static_cast<long long>(blockIdx.x), b);
 }
+__global__ void k_scatter_positions(ScatterArgs a) { scatter_position_thread(a, global_id()); }
 __global__ void k_probe() {}
 
 unsigned grid_for(long long n, int threads) {
@@ -162,11 +163,14 @@ class GpuExec {
   void release(void* p) noexcept {
     if (p) cudaFree(p);
   }
-  void* host_alloc(std::size_t bytes) {
+  /// Pinned (page-locked) host memory: copies to and from it run at the bus's full speed.
+  void* host_alloc(std::size_t bytes, const char* what) {
     void* p = nullptr;
     const cudaError_t e = cudaMallocHost(&p, bytes);
-    if (e != cudaSuccess)
-      throw Error("CUDA: cudaMallocHost of " + std::to_string(bytes) + " bytes (pinned control block) failed: " + cuda_message(e));
+    if (e != cudaSuccess) {
+      cudaGetLastError();
+      throw Error("CUDA: cudaMallocHost of " + std::to_string(bytes) + " bytes (pinned " + what + ") failed: " + cuda_message(e));
+    }
     return p;
   }
   void host_release(void* p) noexcept {
@@ -240,6 +244,11 @@ class GpuExec {
   void check_links(const CheckArgs& a) {
     k_check_links<<<static_cast<unsigned>(a.L.grid.count), kBrickThreads, 0, stream_>>>(a);
     HPCM_LAUNCHED("k_check_links");
+  }
+  void scatter_positions(const ScatterArgs& a) {
+    if (a.n == 0) return;
+    k_scatter_positions<<<grid_for(a.n, 256), 256, 0, stream_>>>(a);
+    HPCM_LAUNCHED("k_scatter_positions");
   }
   void layer(const LayerArgs& a) {
     k_layer<<<static_cast<unsigned>(a.L.grid.count), kBrickThreads, 0, stream_>>>(a);

@@ -116,7 +116,7 @@ class DeviceBackend final : public Backend {
     part_max_ = alloc<float>(NB * kTissueCount, "speed partials");
     part_moved_ = alloc<int>(NB, "speed partials");
     ctl_ = alloc<Ctl>(1, "control block");
-    host_ctl_ = static_cast<Ctl*>(x_.host_alloc(sizeof(Ctl)));
+    host_ctl_ = static_cast<Ctl*>(x_.host_alloc(sizeof(Ctl), "control block"));
     std::memset(static_cast<void*>(host_ctl_), 0, sizeof(Ctl));
     // Propagation lists: grown on overflow (the wave is then rerun from its start).
     pend_cap_ = pend_override_ > 0 ? pend_override_ : static_cast<int>(std::max<std::size_t>(65536, N / 32));
@@ -285,11 +285,12 @@ class DeviceBackend final : public Backend {
 
   /// The link restoration runs on a host copy with the host schedule (solver::LinkRestorer),
   /// so it computes exactly the CPU backend's floats. The device first runs the host's check
-  /// (check_links_block): in most frames it finds nothing, and nothing is downloaded. Otherwise
-  /// the positions are downloaded and the host check runs only on the bricks the device found
-  /// (find_violations attributes each violation to the brick of its element, so it finds the
-  /// same seeds and statistics as over every changed brick). A device schedule of the
-  /// restoration itself is future work.
+  /// (check_links_block): in most frames it finds nothing, and nothing is copied. Otherwise the
+  /// positions are downloaded (into pinned memory when the driver grants it) and the host check
+  /// runs only on the bricks the device found (find_violations attributes each violation to the
+  /// brick of its element, so it finds the same seeds and statistics as over every changed
+  /// brick). The FIXED set is known on the host (fixed_); only the moved elements go back.
+  /// A device schedule of the restoration itself is future work.
   RestoreStats restore_links() override {
     const std::size_t N = static_cast<std::size_t>(L_.n), NB = static_cast<std::size_t>(L_.grid.count);
     CheckArgs ca;
@@ -304,34 +305,27 @@ class DeviceBackend final : public Backend {
     x_.download(&host_ctl_->links_outside, ca.found, sizeof(int));
     x_.sync();
     if (!host_ctl_->links_outside) return {};
+    Vec3* pos = host_positions();
     host_bricks_.resize(NB);
-    host_pos_.resize(N);
-    host_flags_.resize(N);
     x_.download(host_bricks_.data(), check_bricks_, NB);
-    x_.download(host_pos_.data(), L_.pos, N * sizeof(Vec3));
-    x_.download(host_flags_.data(), L_.flags, N);
+    x_.download(pos, L_.pos, N * sizeof(Vec3));
     x_.sync();
     solver::BrickGrid::to_list(host_bricks_, check_list_);
     if (!restorer_ready_) {
       restorer_.init(*m_);
       restorer_ready_ = true;
     }
-    HostAccess access(host_pos_, host_flags_);
+    if (host_fixed_.size() != N) host_fixed_.assign(N, 0);
+    for (int e : fixed_) host_fixed_[static_cast<std::size_t>(e)] = 1;
+    moved_elements_.clear();
+    HostAccess access(pos, host_fixed_, moved_elements_);
     RestoreStats st;
     seeds_.clear();
     solver::find_violations(*m_, L_.grid, check_list_, access, wall_, seeds_, st);
-    std::vector<std::uint8_t> moved(NB, 0);
-    restorer_.restore(*m_, L_.grid, seeds_, access, wall_, moved, st);
-    if (st.moved > 0) {
-      x_.upload(L_.pos, host_pos_.data(), N * sizeof(Vec3));
-      // The moved bricks become touched (velocity layer) and hot (next relaxation).
-      for (std::uint8_t* flags : {L_.touched, L_.hot}) {
-        x_.download(host_bricks_.data(), flags, NB);
-        x_.sync();
-        for (std::size_t b = 0; b < NB; ++b) host_bricks_[b] = static_cast<std::uint8_t>(host_bricks_[b] | moved[b]);
-        x_.upload(flags, host_bricks_.data(), NB);
-      }
-    }
+    host_moved_bricks_.assign(NB, 0);
+    restorer_.restore(*m_, L_.grid, seeds_, access, wall_, host_moved_bricks_, st);
+    for (int e : fixed_) host_fixed_[static_cast<std::size_t>(e)] = 0;
+    upload_moved(pos);
     return st;
   }
 
@@ -452,9 +446,60 @@ class DeviceBackend final : public Backend {
     x_.release(p);
     held_ -= bytes;
   }
+  /// The host copy of the positions for the restoration, allocated on first use: pinned, so
+  /// the copies run at the bus's speed and not through the driver's staging buffer.
+  Vec3* host_positions() {
+    const std::size_t N = static_cast<std::size_t>(L_.n);
+    if (host_pos_pinned_ && host_pos_count_ == N) return host_pos_pinned_;
+    if (host_pos_.size() == N) return host_pos_.data();
+    try {
+      host_pos_pinned_ = static_cast<Vec3*>(x_.host_alloc(N * sizeof(Vec3), "host copy of the positions"));
+      host_pos_count_ = N;
+      return host_pos_pinned_;
+    } catch (const Error&) {
+      host_pos_.resize(N);  // the driver refused to pin this much: slower copies, same result
+      return host_pos_.data();
+    }
+  }
+  /// Uploads the elements the restoration moved and puts them in place on the device.
+  void upload_moved(const Vec3* pos) {
+    std::sort(moved_elements_.begin(), moved_elements_.end());
+    moved_elements_.erase(std::unique(moved_elements_.begin(), moved_elements_.end()), moved_elements_.end());
+    const std::size_t n = moved_elements_.size();
+    if (n == 0) return;
+    moved_positions_.resize(n);
+    for (std::size_t j = 0; j < n; ++j) moved_positions_[j] = pos[moved_elements_[j]];
+    if (n > scatter_cap_) {
+      release(scatter_elements_, scatter_cap_ * sizeof(int));
+      release(scatter_positions_, scatter_cap_ * sizeof(Vec3));
+      scatter_elements_ = nullptr;
+      scatter_positions_ = nullptr;
+      const std::size_t cap = std::max<std::size_t>(n, 2 * scatter_cap_);
+      scatter_elements_ = alloc<int>(cap, "restored elements");
+      scatter_positions_ = alloc<Vec3>(cap, "restored positions");
+      scatter_cap_ = cap;
+    }
+    x_.upload(scatter_elements_, moved_elements_.data(), n * sizeof(int));
+    x_.upload(scatter_positions_, moved_positions_.data(), n * sizeof(Vec3));
+    ScatterArgs a;
+    a.L = L_;
+    a.elements = scatter_elements_;
+    a.positions = scatter_positions_;
+    a.n = static_cast<int>(n);
+    x_.scatter_positions(a);
+    x_.sync();  // the host vectors above are reused by the next restoration
+  }
   void free_all() noexcept {
     for (void* p : blocks_) x_.release(p);
     blocks_.clear();
+    if (host_pos_pinned_) x_.host_release(host_pos_pinned_);
+    host_pos_pinned_ = nullptr;
+    host_pos_count_ = 0;
+    host_pos_.clear();
+    host_pos_.shrink_to_fit();
+    scatter_elements_ = nullptr;
+    scatter_positions_ = nullptr;
+    scatter_cap_ = 0;
     if (host_ctl_) x_.host_release(host_ctl_);
     host_ctl_ = nullptr;
     held_ = 0;
@@ -549,17 +594,31 @@ class DeviceBackend final : public Backend {
   solver::LinkRestorer restorer_;
   solver::Wall wall_;
   bool restorer_ready_ = false;
-  std::vector<Vec3> host_pos_;
-  std::vector<std::uint8_t> host_flags_, host_bricks_;
+  std::vector<Vec3> host_pos_;  ///< used only where pinned memory is refused
+  std::vector<std::uint8_t> host_bricks_;
   std::vector<Index> check_list_, seeds_;
-  /// The restoration's view of the host copy (linear order).
+  std::vector<std::uint8_t> host_fixed_, host_moved_bricks_;
+  std::vector<int> moved_elements_;
+  std::vector<Vec3> moved_positions_;
+  // the host copy of the positions: pinned (x_.host_alloc) or, where that fails, pageable
+  Vec3* host_pos_pinned_ = nullptr;
+  std::size_t host_pos_count_ = 0;
+  // the moved elements on the device (grown as needed)
+  int* scatter_elements_ = nullptr;
+  Vec3* scatter_positions_ = nullptr;
+  std::size_t scatter_cap_ = 0;
+  /// The restoration's view of the host copy (linear order); records every element it moves.
   struct HostAccess final : solver::RestoreAccess {
-    HostAccess(std::vector<Vec3>& p, const std::vector<std::uint8_t>& f) : pos(p), flags(f) {}
-    Vec3 position(Index i) const override { return pos[static_cast<std::size_t>(i)]; }
-    void set_coordinate(Index i, int axis, float value) override { pos[static_cast<std::size_t>(i)][axis] = value; }
-    bool fixed(Index i) const override { return (flags[static_cast<std::size_t>(i)] & kFixed) != 0; }
-    std::vector<Vec3>& pos;
-    const std::vector<std::uint8_t>& flags;
+    HostAccess(Vec3* p, const std::vector<std::uint8_t>& f, std::vector<int>& m) : pos(p), fixed_mask(f), moved(m) {}
+    Vec3 position(Index i) const override { return pos[i]; }
+    void set_coordinate(Index i, int axis, float value) override {
+      pos[i][axis] = value;
+      moved.push_back(static_cast<int>(i));
+    }
+    bool fixed(Index i) const override { return fixed_mask[static_cast<std::size_t>(i)] != 0; }
+    Vec3* pos;
+    const std::vector<std::uint8_t>& fixed_mask;
+    std::vector<int>& moved;
   };
   std::vector<void*> blocks_;
   std::size_t held_ = 0;

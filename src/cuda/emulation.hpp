@@ -44,7 +44,7 @@ class EmuExec {
     return p;
   }
   void release(void* p) noexcept { std::free(p); }
-  void* host_alloc(std::size_t bytes) { return alloc(bytes, "host control block"); }
+  void* host_alloc(std::size_t bytes, const char* what) { return alloc(bytes, what); }
   void host_release(void* p) noexcept { std::free(p); }
   void upload(void* d, const void* h, std::size_t n) { if (n) std::memcpy(d, h, n); }
   void download(void* h, const void* d, std::size_t n) { if (n) std::memcpy(h, d, n); }
@@ -97,6 +97,9 @@ class EmuExec {
       HostBlock b{kBrickT, static_cast<int>(br), static_cast<int>(a.L.grid.count)};
       check_links_block(a, br, b);
     }
+  }
+  void scatter_positions(const ScatterArgs& a) {
+    for (long long j = 0; j < a.n; ++j) scatter_position_thread(a, j);
   }
   void layer(const LayerArgs& a) {
     auto sh = std::make_unique<LayerShared>();

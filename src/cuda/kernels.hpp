@@ -323,8 +323,11 @@ HPCM_HD void propagate_block(const PropArgs& a, PropShared& sh, B& blk) {
   int iterations = 0, buckets = 0;
   bool converged = true;
   while (!sh.overflow) {
-    // (1) smallest pending bucket
+    // (1) smallest pending bucket. The bucket list is emptied here, not at the end of the
+    // previous round: every thread read sh.nl before that round's last barrier, so this write
+    // races with no read (an empty bucket has no barrier between its read and the round's end).
     blk.each([&](int tid) {
+      if (tid == 0) sh.nl = 0;
       const int in = sh.cur;
       for (int j = tid; j < sh.np_in; j += T) at_min_u64(&sh.kmin, a.pend_b[in][j]);
     });
@@ -413,7 +416,6 @@ HPCM_HD void propagate_block(const PropArgs& a, PropShared& sh, B& blk) {
         sh.cur ^= 1;
         sh.np_in = sh.np_out;
         sh.np_out = 0;
-        sh.nl = 0;
         sh.kmin = ~0ull;
       }
     });
@@ -665,6 +667,25 @@ HPCM_HD void check_links_block(const CheckArgs& a, long long b, B& blk) {
       a.bricks[b] = 1;
     }
   });
+}
+
+/// The restoration's result back on the device: only the elements it moved are uploaded
+/// (index and position); their bricks become touched (velocity layer) and hot (next relaxation).
+struct ScatterArgs {
+  Lattice L;
+  const int* elements = nullptr;
+  const Vec3* positions = nullptr;
+  int n = 0;
+};
+
+/// Thread per moved element (every writer of a brick flag stores the same value).
+HPCM_HD inline void scatter_position_thread(const ScatterArgs& a, long long j) {
+  if (j >= a.n) return;
+  const long long e = a.elements[j];
+  a.L.pos[e] = a.positions[j];
+  const long long b = a.L.brick_of_index(e);
+  a.L.touched[b] = 1;
+  a.L.hot[b] = 1;
 }
 
 // ---------------------------------------------------------------------------------------------
