@@ -118,6 +118,10 @@ __global__ void __launch_bounds__(kBrickThreads) k_check_links(CheckArgs a) {
   DevBlock b;
   check_links_block(a, static_cast<long long>(blockIdx.x), b);
 }
+__global__ void __launch_bounds__(kBrickThreads) k_gather_bricks(GatherArgs a) {
+  DevBlock b;
+  gather_brick_block(a, static_cast<long long>(blockIdx.x), b);
+}
 __global__ void k_scatter_positions(ScatterArgs a) { scatter_position_thread(a, global_id()); }
 __global__ void k_probe() {}
 
@@ -244,6 +248,11 @@ class GpuExec {
   void check_links(const CheckArgs& a) {
     k_check_links<<<static_cast<unsigned>(a.L.grid.count), kBrickThreads, 0, stream_>>>(a);
     HPCM_LAUNCHED("k_check_links");
+  }
+  void gather_bricks(const GatherArgs& a) {
+    if (a.n == 0) return;
+    k_gather_bricks<<<static_cast<unsigned>(a.n), kBrickThreads, 0, stream_>>>(a);
+    HPCM_LAUNCHED("k_gather_bricks");
   }
   void scatter_positions(const ScatterArgs& a) {
     if (a.n == 0) return;

@@ -63,10 +63,13 @@ class DeviceBackend final : public Backend {
   }
   /// Times a wave was rerun with larger lists since load().
   int list_regrowths() const { return regrowths_; }
+  /// Test hook: bricks the link restoration copied to the host since load(), and how many of
+  /// those copies it asked for on demand (a brick outside the flagged ones and their neighbours).
+  Index restore_bricks_copied() const { return cache_fetched_; }
+  Index restore_cache_misses() const { return cache_misses_; }
 
   void load(const Model& m, const Params& p, const State& s) override {
     p.validate();
-    restorer_ready_ = false;
     const Index n = m.size();
     if (static_cast<Index>(s.pos.size()) != n || static_cast<Index>(s.vel.size()) != n ||
         static_cast<Index>(s.flags.size()) != n)
@@ -122,6 +125,7 @@ class DeviceBackend final : public Backend {
     pend_cap_ = pend_override_ > 0 ? pend_override_ : static_cast<int>(std::max<std::size_t>(65536, N / 32));
     list_cap_ = list_override_ > 0 ? list_override_ : static_cast<int>(std::max<std::size_t>(16384, N / 128));
     regrowths_ = 0;
+    cache_fetched_ = cache_misses_ = 0;
     alloc_prop_lists();
 
     // Upload: model, then the state (as CpuBackend::load).
@@ -154,6 +158,11 @@ class DeviceBackend final : public Backend {
     x_.upload(L_.unchecked, all.data(), NB);  // a loaded state is checked once
     x_.zero(ctl_, sizeof(Ctl));
 
+    cache_slot_.assign(NB, -1);
+    // The restoration's host state, allocated here (as on the CPU) rather than in the frame of
+    // the first restoration, where it would stall that frame on a large lattice.
+    restorer_.init(m);
+    host_fixed_.assign(N, 0);
     delta_ = solver::bucket_width(m);
     fixed_.clear();
     n_fixed_dev_ = 0;
@@ -283,16 +292,17 @@ class DeviceBackend final : public Backend {
     return st;
   }
 
-  /// The link restoration runs on a host copy with the host schedule (solver::LinkRestorer),
-  /// so it computes exactly the CPU backend's floats. The device first runs the host's check
+  /// The link restoration runs on the host with the host schedule (solver::LinkRestorer), so it
+  /// computes exactly the CPU backend's floats. The device first runs the host's check
   /// (check_links_block): in most frames it finds nothing, and nothing is copied. Otherwise the
-  /// positions are downloaded (into pinned memory when the driver grants it) and the host check
-  /// runs only on the bricks the device found (find_violations attributes each violation to the
-  /// brick of its element, so it finds the same seeds and statistics as over every changed
-  /// brick). The FIXED set is known on the host (fixed_); only the moved elements go back.
-  /// A device schedule of the restoration itself is future work.
+  /// host check runs only on the bricks the device flagged (find_violations attributes each
+  /// violation to the brick of its element, so it finds the same seeds and statistics as over
+  /// every changed brick), and the restoration reads the positions through a brick cache
+  /// (BrickCache): only the bricks it reaches are copied, so the copies follow the region it
+  /// works on, not the lattice. The FIXED set is known on the host (fixed_); only the moved
+  /// elements go back. A device schedule of the restoration itself is future work.
   RestoreStats restore_links() override {
-    const std::size_t N = static_cast<std::size_t>(L_.n), NB = static_cast<std::size_t>(L_.grid.count);
+    const std::size_t NB = static_cast<std::size_t>(L_.grid.count);
     CheckArgs ca;
     ca.L = L_;
     ca.wall = wall_;
@@ -305,27 +315,25 @@ class DeviceBackend final : public Backend {
     x_.download(&host_ctl_->links_outside, ca.found, sizeof(int));
     x_.sync();
     if (!host_ctl_->links_outside) return {};
-    Vec3* pos = host_positions();
     host_bricks_.resize(NB);
     x_.download(host_bricks_.data(), check_bricks_, NB);
-    x_.download(pos, L_.pos, N * sizeof(Vec3));
     x_.sync();
     solver::BrickGrid::to_list(host_bricks_, check_list_);
-    if (!restorer_ready_) {
-      restorer_.init(*m_);
-      restorer_ready_ = true;
-    }
-    if (host_fixed_.size() != N) host_fixed_.assign(N, 0);
     for (int e : fixed_) host_fixed_[static_cast<std::size_t>(e)] = 1;
     moved_elements_.clear();
-    HostAccess access(pos, host_fixed_, moved_elements_);
+    // The flagged bricks and their face neighbours (where find_violations reads) in one copy.
+    cache_clear();
+    L_.grid.dilate_to_list(host_bricks_, prefetch_list_);
+    cache_fetch(prefetch_list_);
+    BrickCache access(*this);
     RestoreStats st;
     seeds_.clear();
     solver::find_violations(*m_, L_.grid, check_list_, access, wall_, seeds_, st);
     host_moved_bricks_.assign(NB, 0);
     restorer_.restore(*m_, L_.grid, seeds_, access, wall_, host_moved_bricks_, st);
     for (int e : fixed_) host_fixed_[static_cast<std::size_t>(e)] = 0;
-    upload_moved(pos);
+    upload_moved();
+    cache_clear();
     return st;
   }
 
@@ -446,29 +454,106 @@ class DeviceBackend final : public Backend {
     x_.release(p);
     held_ -= bytes;
   }
-  /// The host copy of the positions for the restoration, allocated on first use: pinned, so
-  /// the copies run at the bus's speed and not through the driver's staging buffer.
-  Vec3* host_positions() {
-    const std::size_t N = static_cast<std::size_t>(L_.n);
-    if (host_pos_pinned_ && host_pos_count_ == N) return host_pos_pinned_;
-    if (host_pos_.size() == N) return host_pos_.data();
-    try {
-      host_pos_pinned_ = static_cast<Vec3*>(x_.host_alloc(N * sizeof(Vec3), "host copy of the positions"));
-      host_pos_count_ = N;
-      return host_pos_pinned_;
-    } catch (const Error&) {
-      host_pos_.resize(N);  // the driver refused to pin this much: slower copies, same result
-      return host_pos_.data();
+  /// Host address of element i's position in the brick cache; a brick not yet there is copied
+  /// now, with its face neighbours that are not there either (the restoration's work list moves
+  /// to neighbours, so they are likely next).
+  Vec3* cache_element(Index i) {
+    const solver::BrickGrid& g = L_.grid;
+    const int x = static_cast<int>(i % g.dims.x);
+    const Index r = i / g.dims.x;
+    const int y = static_cast<int>(r % g.dims.y), z = static_cast<int>(r / g.dims.y);
+    const Index b = g.brick_of(x, y, z);
+    if (cache_slot_[static_cast<std::size_t>(b)] < 0) {
+      ++cache_misses_;
+      fetch_list_.assign(1, b);
+      const Int3 c = g.brick_coords(b);
+      const Index sy = g.nb.x, sz = static_cast<Index>(g.nb.x) * g.nb.y;
+      const bool face[6] = {c.x > 0, c.x + 1 < g.nb.x, c.y > 0, c.y + 1 < g.nb.y, c.z > 0, c.z + 1 < g.nb.z};
+      const Index step[6] = {-1, 1, -sy, sy, -sz, sz};
+      for (int f = 0; f < 6; ++f)
+        if (face[f] && cache_slot_[static_cast<std::size_t>(b + step[f])] < 0) fetch_list_.push_back(b + step[f]);
+      cache_fetch(fetch_list_);
     }
+    const int bs = g.size;
+    const std::size_t q = static_cast<std::size_t>(x % bs + bs * (y % bs + bs * (z % bs)));
+    return cache_host_ + static_cast<std::size_t>(cache_slot_[static_cast<std::size_t>(b)]) * brick_volume() + q;
+  }
+  std::size_t brick_volume() const { return static_cast<std::size_t>(L_.grid.size) * L_.grid.size * L_.grid.size; }
+  /// Copies the listed bricks (none of them in the cache yet) from the device into the cache.
+  void cache_fetch(const std::vector<Index>& bricks) {
+    const std::size_t n = bricks.size(), per = brick_volume();
+    if (n == 0) return;
+    if (cache_used_ + n > cache_cap_) grow_host_cache(std::max(cache_used_ + n, 2 * cache_cap_));
+    if (n > gather_cap_) {
+      release(gather_ids_, gather_cap_ * sizeof(int));
+      release(gather_out_, gather_cap_ * per * sizeof(Vec3));
+      gather_ids_ = nullptr;
+      gather_out_ = nullptr;
+      const std::size_t cap = std::max(n, 2 * gather_cap_);
+      gather_ids_ = alloc<int>(cap, "restoration brick list");
+      gather_out_ = alloc<Vec3>(cap * per, "restoration brick copies");
+      gather_cap_ = cap;
+    }
+    gather_ids_host_.assign(bricks.begin(), bricks.end());
+    x_.upload(gather_ids_, gather_ids_host_.data(), n * sizeof(int));
+    GatherArgs a;
+    a.L = L_;
+    a.bricks = gather_ids_;
+    a.out = gather_out_;
+    a.n = static_cast<int>(n);
+    x_.gather_bricks(a);
+    x_.download(cache_host_ + cache_used_ * per, gather_out_, n * per * sizeof(Vec3));
+    x_.sync();
+    for (std::size_t j = 0; j < n; ++j) cache_slot_[static_cast<std::size_t>(bricks[j])] = static_cast<int>(cache_used_ + j);
+    cache_bricks_.insert(cache_bricks_.end(), bricks.begin(), bricks.end());
+    cache_used_ += n;
+    cache_fetched_ += static_cast<Index>(n);
+  }
+  /// Room for `cap` bricks, the bricks already there kept: pinned memory (copies at the bus's
+  /// speed) where the driver grants it, pageable otherwise.
+  void grow_host_cache(std::size_t cap) {
+    const std::size_t per = brick_volume(), keep = cache_used_ * per;
+    Vec3* pinned = nullptr;
+    try {
+      pinned = static_cast<Vec3*>(x_.host_alloc(cap * per * sizeof(Vec3), "restoration brick cache"));
+    } catch (const Error&) {
+      pinned = nullptr;
+    }
+    if (pinned) {
+      if (keep) std::memcpy(static_cast<void*>(pinned), cache_host_, keep * sizeof(Vec3));
+      release_host_cache();
+      cache_pinned_ = pinned;
+      cache_host_ = pinned;
+    } else {
+      std::vector<Vec3> bigger(cap * per);
+      if (keep) std::memcpy(static_cast<void*>(bigger.data()), cache_host_, keep * sizeof(Vec3));
+      release_host_cache();
+      cache_pageable_ = std::move(bigger);
+      cache_host_ = cache_pageable_.data();
+    }
+    cache_cap_ = cap;
+  }
+  void release_host_cache() noexcept {
+    if (cache_pinned_) x_.host_release(cache_pinned_);
+    cache_pinned_ = nullptr;
+    cache_pageable_.clear();
+    cache_pageable_.shrink_to_fit();
+    cache_host_ = nullptr;
+  }
+  /// Forgets the bricks of this restoration (the device moves on; the room is kept).
+  void cache_clear() {
+    for (Index b : cache_bricks_) cache_slot_[static_cast<std::size_t>(b)] = -1;
+    cache_bricks_.clear();
+    cache_used_ = 0;
   }
   /// Uploads the elements the restoration moved and puts them in place on the device.
-  void upload_moved(const Vec3* pos) {
+  void upload_moved() {
     std::sort(moved_elements_.begin(), moved_elements_.end());
     moved_elements_.erase(std::unique(moved_elements_.begin(), moved_elements_.end()), moved_elements_.end());
     const std::size_t n = moved_elements_.size();
     if (n == 0) return;
     moved_positions_.resize(n);
-    for (std::size_t j = 0; j < n; ++j) moved_positions_[j] = pos[moved_elements_[j]];
+    for (std::size_t j = 0; j < n; ++j) moved_positions_[j] = *cache_element(moved_elements_[j]);
     if (n > scatter_cap_) {
       release(scatter_elements_, scatter_cap_ * sizeof(int));
       release(scatter_positions_, scatter_cap_ * sizeof(Vec3));
@@ -492,11 +577,12 @@ class DeviceBackend final : public Backend {
   void free_all() noexcept {
     for (void* p : blocks_) x_.release(p);
     blocks_.clear();
-    if (host_pos_pinned_) x_.host_release(host_pos_pinned_);
-    host_pos_pinned_ = nullptr;
-    host_pos_count_ = 0;
-    host_pos_.clear();
-    host_pos_.shrink_to_fit();
+    release_host_cache();
+    cache_cap_ = cache_used_ = 0;
+    cache_bricks_.clear();
+    gather_ids_ = nullptr;
+    gather_out_ = nullptr;
+    gather_cap_ = 0;
     scatter_elements_ = nullptr;
     scatter_positions_ = nullptr;
     scatter_cap_ = 0;
@@ -593,32 +679,39 @@ class DeviceBackend final : public Backend {
   // link restoration on the host (restore_links)
   solver::LinkRestorer restorer_;
   solver::Wall wall_;
-  bool restorer_ready_ = false;
-  std::vector<Vec3> host_pos_;  ///< used only where pinned memory is refused
   std::vector<std::uint8_t> host_bricks_;
   std::vector<Index> check_list_, seeds_;
   std::vector<std::uint8_t> host_fixed_, host_moved_bricks_;
   std::vector<int> moved_elements_;
   std::vector<Vec3> moved_positions_;
-  // the host copy of the positions: pinned (x_.host_alloc) or, where that fails, pageable
-  Vec3* host_pos_pinned_ = nullptr;
-  std::size_t host_pos_count_ = 0;
+  // the brick cache of the restoration: slot per brick (-1: not on the host), host room for
+  // cache_cap_ bricks (pinned where the driver grants it), the device's packed copies
+  std::vector<int> cache_slot_;
+  std::vector<Index> cache_bricks_, prefetch_list_, fetch_list_;
+  Vec3* cache_host_ = nullptr;
+  Vec3* cache_pinned_ = nullptr;
+  std::vector<Vec3> cache_pageable_;
+  std::size_t cache_cap_ = 0, cache_used_ = 0;
+  std::vector<int> gather_ids_host_;
+  int* gather_ids_ = nullptr;
+  Vec3* gather_out_ = nullptr;
+  std::size_t gather_cap_ = 0;
+  Index cache_fetched_ = 0, cache_misses_ = 0;
   // the moved elements on the device (grown as needed)
   int* scatter_elements_ = nullptr;
   Vec3* scatter_positions_ = nullptr;
   std::size_t scatter_cap_ = 0;
-  /// The restoration's view of the host copy (linear order); records every element it moves.
-  struct HostAccess final : solver::RestoreAccess {
-    HostAccess(Vec3* p, const std::vector<std::uint8_t>& f, std::vector<int>& m) : pos(p), fixed_mask(f), moved(m) {}
-    Vec3 position(Index i) const override { return pos[i]; }
+  /// The restoration's view of the device positions (linear element order) through the brick
+  /// cache; records every element it moves.
+  struct BrickCache final : solver::RestoreAccess {
+    explicit BrickCache(DeviceBackend& d) : dev(d) {}
+    Vec3 position(Index i) const override { return *dev.cache_element(i); }
     void set_coordinate(Index i, int axis, float value) override {
-      pos[i][axis] = value;
-      moved.push_back(static_cast<int>(i));
+      (*dev.cache_element(i))[axis] = value;
+      dev.moved_elements_.push_back(static_cast<int>(i));
     }
-    bool fixed(Index i) const override { return fixed_mask[static_cast<std::size_t>(i)] != 0; }
-    Vec3* pos;
-    const std::vector<std::uint8_t>& fixed_mask;
-    std::vector<int>& moved;
+    bool fixed(Index i) const override { return dev.host_fixed_[static_cast<std::size_t>(i)] != 0; }
+    DeviceBackend& dev;
   };
   std::vector<void*> blocks_;
   std::size_t held_ = 0;

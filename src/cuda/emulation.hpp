@@ -98,6 +98,12 @@ class EmuExec {
       check_links_block(a, br, b);
     }
   }
+  void gather_bricks(const GatherArgs& a) {
+    for (long long j = 0; j < a.n; ++j) {
+      HostBlock b{kBrickT, static_cast<int>(j), a.n};
+      gather_brick_block(a, j, b);
+    }
+  }
   void scatter_positions(const ScatterArgs& a) {
     for (long long j = 0; j < a.n; ++j) scatter_position_thread(a, j);
   }

@@ -669,6 +669,33 @@ HPCM_HD void check_links_block(const CheckArgs& a, long long b, B& blk) {
   });
 }
 
+/// Bricks the restoration reads, packed for one copy to the host: brick j of the list goes to
+/// out[j * B^3 ...] in brick-local order (x fastest); elements past the lattice edge are left
+/// unwritten (never read).
+struct GatherArgs {
+  Lattice L;
+  const int* bricks = nullptr;
+  Vec3* out = nullptr;
+  int n = 0;
+};
+
+template <class B>
+HPCM_HD void gather_brick_block(const GatherArgs& a, long long j, B& blk) {
+  if (j >= a.n) return;  // uniform over the block
+  const Lattice& L = a.L;
+  int lo[3], hi[3];
+  L.brick_range(a.bricks[j], lo, hi);
+  const int bs = L.grid.size, per = bs * bs * bs;
+  const int T = blk.threads();
+  Vec3* out = a.out + j * per;
+  blk.each([&](int tid) {
+    for (int q = tid; q < per; q += T) {
+      const int x = lo[0] + q % bs, y = lo[1] + (q / bs) % bs, z = lo[2] + q / (bs * bs);
+      if (x < hi[0] && y < hi[1] && z < hi[2]) out[q] = L.pos[L.index(x, y, z)];
+    }
+  });
+}
+
 /// The restoration's result back on the device: only the elements it moved are uploaded
 /// (index and position); their bricks become touched (velocity layer) and hot (next relaxation).
 struct ScatterArgs {

@@ -169,6 +169,23 @@ inline void check_waves(const Factory& make_device, const Model& m, const Params
 /// squeezed and sheared out of their boxes and elements beyond the boundary box must give the
 /// same violations and the same restored floats on both backends; the rest state must be left
 /// alone by both.
+/// The link restoration of state s on `dev` and on the CPU backend: the same statistics and
+/// the same restored floats. Returns the CPU's statistics.
+inline RestoreStats check_restore_on(Backend& dev, const Model& m, const Params& p, const State& s) {
+  auto cpu = make_backend(BackendKind::Cpu);
+  cpu->load(m, p, s);
+  dev.load(m, p, s);
+  const RestoreStats rc = cpu->restore_links(), rd = dev.restore_links();
+  EXPECT_EQ(rc.violated_links, rd.violated_links);
+  EXPECT_EQ(rc.max_violation, rd.max_violation);
+  EXPECT_EQ(rc.moved, rd.moved);
+  std::vector<Vec3> xc, xd;
+  cpu->download_positions(xc);
+  dev.download_positions(xd);
+  EXPECT_EQ(max_diff(xc, xd), 0.0f) << "restored positions";
+  return rc;
+}
+
 inline void check_restore(const Factory& make_device, const Model& m, const Params& p, std::uint64_t seed,
                           const std::string& what) {
   std::mt19937_64 rng(seed);
@@ -182,26 +199,36 @@ inline void check_restore(const Factory& make_device, const Model& m, const Para
   broken.pos[static_cast<std::size_t>(pick(rng))].x = -3.0f;  // beyond the boundary box
   for (const bool with_violations : {true, false}) {
     SCOPED_TRACE(what + (with_violations ? ", broken links" : ", rest state"));
-    const State s = with_violations ? broken : State::rest(m);
-    auto cpu = make_backend(BackendKind::Cpu);
     auto dev = make_device();
-    cpu->load(m, p, s);
-    dev->load(m, p, s);
-    const RestoreStats rc = cpu->restore_links(), rd = dev->restore_links();
-    EXPECT_EQ(rc.violated_links, rd.violated_links);
-    EXPECT_EQ(rc.max_violation, rd.max_violation);
-    EXPECT_EQ(rc.moved, rd.moved);
+    const RestoreStats rc = check_restore_on(*dev, m, p, with_violations ? broken : State::rest(m));
     if (with_violations) {
       EXPECT_GT(rc.violated_links, 0) << "the broken state must have links outside their boxes";
       EXPECT_GT(rc.moved, 0);
     } else {
       EXPECT_EQ(rc.violated_links, 0);
     }
-    std::vector<Vec3> xc, xd;
-    cpu->download_positions(xc);
-    dev->download_positions(xd);
-    EXPECT_EQ(max_diff(xc, xd), 0.0f) << "restored positions";
   }
+}
+
+/// One element pulled 1.5 cells out of its boxes in the middle of a 64x24x16 phantom of 4^3
+/// bricks: the restoration moves a region of a few hundred elements around it, reaching bricks
+/// beyond the flagged ones and their neighbours (test_cuda_emulation.cpp counts the copies).
+struct FarRestoreCase {
+  Params p;
+  Model m;
+  State s;
+  Index bricks = 0;
+};
+inline FarRestoreCase far_restore_case() {
+  FarRestoreCase c;
+  c.p.solver.brick_size = 4;
+  c.m = phantom_model({64, 24, 16}, c.p, 5);
+  c.s = State::rest(c.m);
+  const auto e = static_cast<std::size_t>(c.m.index(32, 12, 8));
+  EXPECT_EQ(c.s.flags[e] & kFixed, 0);
+  c.s.pos[e].x += 1.5f;
+  c.bricks = (64 / 4) * (24 / 4) * (16 / 4);
+  return c;
 }
 
 /// The full frame pipeline (Simulation) on both backends, frame by frame.

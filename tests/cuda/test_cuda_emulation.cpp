@@ -129,3 +129,17 @@ TEST(CudaEmulation, PipelineRandomGrabsABC) {
 }
 
 }  // namespace
+
+TEST(CudaEmulation, RestorationCopiesOnlyTheBricksItReaches) {
+  // The device copies the bricks the restoration reads: the flagged bricks and their neighbours
+  // up front, any other on demand, and no others; the result is still the CPU backend's.
+  const FarRestoreCase c = far_restore_case();
+  gpu::DeviceBackend<gpu::EmuExec> dev(2);
+  const RestoreStats rc = check_restore_on(dev, c.m, c.p, c.s);
+  ASSERT_GT(rc.moved, 0);
+  std::printf("[restore] moved %lld elements; copied %lld of %lld bricks, %lld on demand\n",
+              static_cast<long long>(rc.moved), static_cast<long long>(dev.restore_bricks_copied()),
+              static_cast<long long>(c.bricks), static_cast<long long>(dev.restore_cache_misses()));
+  EXPECT_GT(dev.restore_cache_misses(), 0) << "the restoration reached past the bricks copied up front";
+  EXPECT_LT(dev.restore_bricks_copied(), c.bricks / 4) << "copies follow the restored region, not the lattice";
+}

@@ -65,6 +65,10 @@ TEST(CudaParity, LinkRestoration) {
   const Params p;
   check_restore(cuda(), phantom_model({48, 48, 32}, p), p, 3, "phantom 48x48x32");
   check_restore(cuda(), random_model({37, 29, 23}, 4, p), p, 4, "random lattice");
+  // A restoration that reaches bricks beyond the flagged ones (copied on demand).
+  const FarRestoreCase c = far_restore_case();
+  auto dev = cuda()();
+  EXPECT_GT(check_restore_on(*dev, c.m, c.p, c.s).moved, 0);
 }
 
 TEST(CudaParity, PipelinePaperProtocolABC) {
