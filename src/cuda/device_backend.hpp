@@ -484,16 +484,7 @@ class DeviceBackend final : public Backend {
     const std::size_t n = bricks.size(), per = brick_volume();
     if (n == 0) return;
     if (cache_used_ + n > cache_cap_) grow_host_cache(std::max(cache_used_ + n, 2 * cache_cap_));
-    if (n > gather_cap_) {
-      release(gather_ids_, gather_cap_ * sizeof(int));
-      release(gather_out_, gather_cap_ * per * sizeof(Vec3));
-      gather_ids_ = nullptr;
-      gather_out_ = nullptr;
-      const std::size_t cap = std::max(n, 2 * gather_cap_);
-      gather_ids_ = alloc<int>(cap, "restoration brick list");
-      gather_out_ = alloc<Vec3>(cap * per, "restoration brick copies");
-      gather_cap_ = cap;
-    }
+    grow_lists(gather_ids_, gather_out_, gather_cap_, n, per, "restoration brick list", "restoration brick copies");
     gather_ids_host_.assign(bricks.begin(), bricks.end());
     x_.upload(gather_ids_, gather_ids_host_.data(), n * sizeof(int));
     GatherArgs a;
@@ -546,6 +537,20 @@ class DeviceBackend final : public Backend {
     cache_bricks_.clear();
     cache_used_ = 0;
   }
+  /// Device room for n entries of a pair of lists (indices, and `per` values per index), grown
+  /// to at least twice the old room; the contents are not kept.
+  void grow_lists(int*& ids, Vec3*& values, std::size_t& cap, std::size_t n, std::size_t per, const char* what_ids,
+                  const char* what_values) {
+    if (n <= cap) return;
+    release(ids, cap * sizeof(int));
+    release(values, cap * per * sizeof(Vec3));
+    ids = nullptr;
+    values = nullptr;
+    const std::size_t room = std::max(n, 2 * cap);
+    ids = alloc<int>(room, what_ids);
+    values = alloc<Vec3>(room * per, what_values);
+    cap = room;
+  }
   /// Uploads the elements the restoration moved and puts them in place on the device.
   void upload_moved() {
     std::sort(moved_elements_.begin(), moved_elements_.end());
@@ -554,16 +559,7 @@ class DeviceBackend final : public Backend {
     if (n == 0) return;
     moved_positions_.resize(n);
     for (std::size_t j = 0; j < n; ++j) moved_positions_[j] = *cache_element(moved_elements_[j]);
-    if (n > scatter_cap_) {
-      release(scatter_elements_, scatter_cap_ * sizeof(int));
-      release(scatter_positions_, scatter_cap_ * sizeof(Vec3));
-      scatter_elements_ = nullptr;
-      scatter_positions_ = nullptr;
-      const std::size_t cap = std::max<std::size_t>(n, 2 * scatter_cap_);
-      scatter_elements_ = alloc<int>(cap, "restored elements");
-      scatter_positions_ = alloc<Vec3>(cap, "restored positions");
-      scatter_cap_ = cap;
-    }
+    grow_lists(scatter_elements_, scatter_positions_, scatter_cap_, n, 1, "restored elements", "restored positions");
     x_.upload(scatter_elements_, moved_elements_.data(), n * sizeof(int));
     x_.upload(scatter_positions_, moved_positions_.data(), n * sizeof(Vec3));
     ScatterArgs a;
