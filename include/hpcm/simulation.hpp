@@ -9,6 +9,10 @@
 
 namespace hpcm {
 
+namespace solver {
+class ToolLimitSearch;
+}
+
 struct FrameReport {
   int frame = 0;
   bool deform = false;          ///< deformation stage (a grab is held) or idle stage
@@ -42,6 +46,7 @@ class Simulation {
   // The backend keeps a pointer to model(): a Simulation stays where it was made.
   Simulation(const Simulation&) = delete;
   Simulation& operator=(const Simulation&) = delete;
+  ~Simulation();
 
   const Model& model() const { return model_; }
   const Params& params() const { return params_; }
@@ -63,9 +68,11 @@ class Simulation {
   Vec3 tool_offset() const { return tool_offset_; }
   Vec3 requested_offset() const { return requested_offset_; }
   bool tool_limited() const { return !(tool_offset_ == requested_offset_); }
-  /// Feasible tool offsets of the current grab, per axis [lo, hi] (lattice units).
-  Vec3 tool_limit_lo() const { return limit_lo_; }
-  Vec3 tool_limit_hi() const { return limit_hi_; }
+  /// Feasible tool offsets of the current grab, per axis [lo, hi] (lattice units; 0 when
+  /// nothing is held). The tool's moves search only as far as they need; these run the search
+  /// of the whole box.
+  Vec3 tool_limit_lo() const;
+  Vec3 tool_limit_hi() const;
   const std::vector<Index>& grabbed() const { return grabbed_; }
 
   /// One frame of the pipeline.
@@ -97,7 +104,7 @@ class Simulation {
   std::vector<Vec3> grab_origin_;
   Index grab_centre_ = -1;
   Vec3 tool_offset_{}, requested_offset_{};
-  Vec3 limit_lo_{}, limit_hi_{};
+  std::unique_ptr<solver::ToolLimitSearch> tool_limit_;  ///< of the current grab; null when none
   std::vector<std::uint8_t> anchored_;  ///< per element: anchored at rest (grabbed elements excluded)
   int frame_ = 0;
   // Integrity metrics of the current positions, kept while no brick had work.

@@ -1,6 +1,8 @@
 #include "hpcm/simulation.hpp"
 
 #include <cmath>
+#include <memory>
+#include <utility>
 
 #include "solver/tool_limit.hpp"
 
@@ -15,6 +17,8 @@ Simulation::Simulation(Model model, Params params, std::unique_ptr<Backend> back
   if (!backend_) throw Error("Simulation: no backend");
   reset();
 }
+
+Simulation::~Simulation() = default;
 
 void Simulation::set_params(const Params& p) {
   p.validate();
@@ -54,7 +58,8 @@ void Simulation::reset() {
   grabbed_.clear();
   grab_origin_.clear();
   grab_centre_ = -1;
-  tool_offset_ = requested_offset_ = limit_lo_ = limit_hi_ = {};
+  tool_offset_ = requested_offset_ = {};
+  tool_limit_.reset();
   frame_ = 0;
   push_fixed();
 }
@@ -76,15 +81,18 @@ void Simulation::compute_anchors() {
 }
 
 void Simulation::compute_tool_limit() {
-  limit_lo_ = limit_hi_ = {};
+  tool_limit_.reset();
   if (grabbed_.empty()) return;
   // Grabbed elements move with the tool even where they are anchored (bone under the tool).
   std::vector<std::uint8_t> anchored = anchored_;
   for (Index g : grabbed_) anchored[static_cast<std::size_t>(g)] = 0;
-  const solver::ToolLimit lim = solver::tool_limit(model_, grabbed_, grab_origin_, anchored, params_.dynamics.margin);
-  limit_lo_ = lim.lo;
-  limit_hi_ = lim.hi;
+  // Searched lazily: each move_tool() explores only as far as its offset needs.
+  tool_limit_ = std::make_unique<solver::ToolLimitSearch>(model_, grabbed_, grab_origin_, std::move(anchored),
+                                                          params_.dynamics.margin);
 }
+
+Vec3 Simulation::tool_limit_lo() const { return tool_limit_ ? tool_limit_->limit().lo : Vec3{}; }
+Vec3 Simulation::tool_limit_hi() const { return tool_limit_ ? tool_limit_->limit().hi : Vec3{}; }
 
 void Simulation::grab(Index centre, float radius) {
   if (centre < 0 || centre >= model_.size())
@@ -116,8 +124,7 @@ void Simulation::move_tool(Vec3 offset) {
     throw Error("tool offset must be finite");
   requested_offset_ = offset;
   tool_offset_ = offset;
-  if (grabbing())
-    for (int b = 0; b < 3; ++b) tool_offset_[b] = std::min(std::max(offset[b], limit_lo_[b]), limit_hi_[b]);
+  if (grabbing() && tool_limit_) tool_offset_ = tool_limit_->clamp(offset);
   push_fixed();
 }
 
@@ -125,7 +132,8 @@ void Simulation::release() {
   grabbed_.clear();
   grab_origin_.clear();
   grab_centre_ = -1;
-  tool_offset_ = requested_offset_ = limit_lo_ = limit_hi_ = {};
+  tool_offset_ = requested_offset_ = {};
+  tool_limit_.reset();
   push_fixed();
 }
 

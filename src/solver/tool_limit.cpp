@@ -8,7 +8,9 @@
 #include <cstdint>
 #include <cstring>
 #include <limits>
+#include <memory>
 #include <utility>
+#include <vector>
 
 #include "solver/neighbours.hpp"
 #include "solver/restore.hpp"
@@ -102,116 +104,211 @@ class RadixHeap {
   std::size_t size_ = 0;
 };
 
-struct Search {
-  const Model& m;
-  const std::vector<std::uint8_t>& anchored;
-  std::vector<std::uint8_t> grabbed;  // per element
-  std::vector<double> dist;
-  std::vector<Index> seen;
-  float margin;
-  RadixHeap heap;
-
-  /// Slack left to a link after the restoration's rounding: on axes of 128 cells and more it
-  /// rounds every box limit toward the inside, by less than a float step of the coordinate
-  /// (solver/restore.hpp, link_bound), so a chain stretched to its exact slack could not be met
-  /// in floats. Two float steps of the axis's largest coordinate per link keep every chain the
-  /// tool may stretch feasible after rounding (3e-5 cells per link up to 256; never below zero,
-  /// which the search's radix heap needs).
-  static double usable(double slack, double float_step) { return std::max(0.0, slack - 2.0 * float_step); }
-
-  /// Smallest (start_g + shortest slack path to an anchor or to the wall) over the grabbed
-  /// elements on axis b. forward: paths follow d_next <= d_cur + slack (the lower bound of
-  /// the tool); otherwise the reversed edges (the upper bound).
-  double run(const std::vector<Index>& starts, const std::vector<double>& start_dist, int b, bool forward) {
-    for (Index i : seen) dist[static_cast<std::size_t>(i)] = kInfD;
-    seen.clear();
-    heap.clear();
-    for (std::size_t k = 0; k < starts.size(); ++k) {
-      const Index g = starts[k];
-      if (start_dist[k] < dist[static_cast<std::size_t>(g)]) {
-        if (dist[static_cast<std::size_t>(g)] == kInfD) seen.push_back(g);
-        dist[static_cast<std::size_t>(g)] = start_dist[k];
-        heap.push(start_dist[k], g);
-      }
-    }
-    const int n_b = b == 0 ? m.dims.x : (b == 1 ? m.dims.y : m.dims.z);
-    const double step = inward_rounding_on_axis(n_b, margin);
-    double best = kInfD;
-    while (!heap.empty()) {
-      // Named copies, not a structured binding: the lambda below captures d (clang 14 rejects that).
-      const RadixHeap::Entry top = heap.pop();
-      const double d = top.first;
-      const Index e = top.second;
-      if (d > dist[static_cast<std::size_t>(e)]) continue;
-      if (d >= best) break;
-      const Int3 c = m.coords(e);
-      const double rest = c[b];
-      // The wall: forward (lower bound) d_e >= -(rest + margin); reversed d_e <= N - 1 + margin - rest.
-      const double wall = forward ? rest + margin : (n_b - 1 + margin) - rest;
-      if (anchored[static_cast<std::size_t>(e)]) {
-        best = std::min(best, d);
-        continue;  // an anchor ends the chain
-      }
-      best = std::min(best, d + wall);
-      for_each_face_neighbour(m, c.x, c.y, c.z, e, [&](Index n, int a, int side, const LinkLimits& L) {
-        if (grabbed[static_cast<std::size_t>(n)]) return;
-        const double nd = d + usable(forward ? slack_to(L, a, side, b) : slack_from(L, a, side, b), step);
-        if (nd < dist[static_cast<std::size_t>(n)]) {
-          if (dist[static_cast<std::size_t>(n)] == kInfD) seen.push_back(n);
-          dist[static_cast<std::size_t>(n)] = nd;
-          heap.push(nd, n);
-        }
-      });
-    }
-    return best;
+/// Distances of one search, in pages of 4,096 elements allocated when first written: the
+/// memory follows the region the search explores, not the lattice.
+class SparseDistances {
+ public:
+  explicit SparseDistances(Index n) : pages_(static_cast<std::size_t>((n + kPage - 1) / kPage)) {}
+  double get(Index i) const {
+    const auto& page = pages_[static_cast<std::size_t>(i >> kShift)];
+    return page ? page[static_cast<std::size_t>(i & (kPage - 1))] : kInfD;
   }
+  void set(Index i, double d) {
+    auto& page = pages_[static_cast<std::size_t>(i >> kShift)];
+    if (!page) {
+      page = std::make_unique<double[]>(static_cast<std::size_t>(kPage));
+      std::fill_n(page.get(), kPage, kInfD);
+    }
+    page[static_cast<std::size_t>(i & (kPage - 1))] = d;
+  }
+  void release() {
+    for (auto& page : pages_) page.reset();
+  }
+
+ private:
+  static constexpr int kShift = 12;
+  static constexpr Index kPage = Index{1} << kShift;
+  std::vector<std::unique_ptr<double[]>> pages_;
 };
+
+/// Slack left to a link after the restoration's rounding: on axes of 128 cells and more it
+/// rounds every box limit toward the inside, by less than a float step of the coordinate
+/// (solver/restore.hpp, link_bound), so a chain stretched to its exact slack could not be met
+/// in floats. Two float steps of the axis's largest coordinate per link keep every chain the
+/// tool may stretch feasible after rounding (3e-5 cells per link up to 256; never below zero,
+/// which the search's radix heap needs).
+double usable(double slack, double float_step) { return std::max(0.0, slack - 2.0 * float_step); }
+
+/// The largest offset allowed on one side of an axis whose search found `bound` (the smallest
+/// start + slack path to an anchor or to the wall). A grabbed element's position (origin +
+/// offset) is rounded to the coordinate's float grid: on an axis that rounds inward, one more
+/// float step keeps it feasible (a grab at the wall has no link to spare). Then rounded
+/// inwards so that a clamped offset is met after float rounding of the targets. Offset 0 stays
+/// allowed where the search allows it: the grabbed elements then stay where they are, with no
+/// rounding to allow for (a grab at rest on the wall with margin 0). Nondecreasing in bound.
+float side_limit(double bound, double step) {
+  const auto below = [](double v) { return std::nextafter(static_cast<float>(std::min(v, 1e30)), -INFINITY); };
+  return std::max(below(bound - step), std::min(below(bound), 0.0f));
+}
 
 }  // namespace
 
-ToolLimit tool_limit(const Model& m, const std::vector<Index>& grabbed, const std::vector<Vec3>& origin,
-                     const std::vector<std::uint8_t>& anchored, float margin) {
-  if (grabbed.size() != origin.size()) throw Error("tool_limit: grabbed and origin sizes differ");
-  if (static_cast<Index>(anchored.size()) != m.size()) throw Error("tool_limit: anchor flags do not match the model");
-  ToolLimit lim;
-  if (grabbed.empty()) return lim;
-  // Six independent searches (three axes, two directions): they run on the available threads,
-  // each with its own distance array, so the result does not depend on the thread count.
-  double bound[3][2];  // [axis][0: upper bound of the offset, 1: lower bound, negated]
-  const int threads = std::min(6, omp_get_max_threads());  // no search state for idle threads
-#pragma omp parallel num_threads(threads)
-  {
-    Search s{m, anchored, std::vector<std::uint8_t>(static_cast<std::size_t>(m.size()), 0),
-             std::vector<double>(static_cast<std::size_t>(m.size()), kInfD), {}, margin, {}};
-    for (Index g : grabbed) s.grabbed[static_cast<std::size_t>(g)] = 1;
-#pragma omp for schedule(dynamic, 1)
-    for (int task = 0; task < 6; ++task) {
-      const int b = task / 2;
-      const bool upper = task % 2 == 0;
-      std::vector<double> start(grabbed.size());
-      // Upper bound: offset <= slack(anchor or wall -> g) - d_g, searched backwards from g.
-      // Lower bound: offset >= -(d_g + slack(g -> anchor or wall)), searched forwards from g.
-      for (std::size_t k = 0; k < grabbed.size(); ++k) {
-        const double d_g = static_cast<double>(origin[k][b]) - m.coords(grabbed[k])[b];
-        start[k] = upper ? -d_g : d_g;
-      }
-      bound[b][upper ? 0 : 1] = s.run(grabbed, start, b, !upper);
-    }
-  }
+/// One of the six searches (an axis, one side), resumable: it stops at a distance cap with
+/// every element closer than the cap settled, and goes on from there when asked for more.
+struct ToolLimitSearch::Direction {
+  Direction(Index n, int axis_, bool upper_) : axis(axis_), upper(upper_), dist(n) {}
+  int axis;
+  bool upper;  ///< upper bound of the offset: searched along the reversed edges
+  double step = 0;  ///< the restoration's rounding per link on this axis
+  RadixHeap heap;
+  SparseDistances dist;
+  double best = kInfD;  ///< smallest start + slack to an anchor or the wall found so far
+  double settled = -kInfD;  ///< every element closer than this has been expanded
+  bool done = false;  ///< best is the bound
+  /// A lower bound of the search's bound: exact when done.
+  double known() const { return done ? best : std::min(best, settled); }
+  float allowed() const { return side_limit(known(), step); }
+};
+
+ToolLimitSearch::ToolLimitSearch(const Model& m, std::vector<Index> grabbed, const std::vector<Vec3>& origin,
+                                 std::vector<std::uint8_t> anchored, float margin)
+    : m_(m), grabbed_(std::move(grabbed)), anchored_(std::move(anchored)), margin_(margin) {
+  if (grabbed_.size() != origin.size()) throw Error("tool_limit: grabbed and origin sizes differ");
+  if (static_cast<Index>(anchored_.size()) != m.size()) throw Error("tool_limit: anchor flags do not match the model");
+  is_grabbed_.assign(static_cast<std::size_t>(m.size()), 0);
+  for (Index g : grabbed_) is_grabbed_[static_cast<std::size_t>(g)] = 1;
   const int n[3] = {m.dims.x, m.dims.y, m.dims.z};
+  dirs_.reserve(6);
+  for (int task = 0; task < 6; ++task) {
+    Direction& d = dirs_.emplace_back(m.size(), task / 2, task % 2 == 0);
+    const int b = d.axis;
+    d.step = inward_rounding_on_axis(n[b], margin);
+    // Upper bound: offset <= slack(anchor or wall -> g) - d_g, searched backwards from g.
+    // Lower bound: offset >= -(d_g + slack(g -> anchor or wall)), searched forwards from g.
+    for (std::size_t k = 0; k < grabbed_.size(); ++k) {
+      const Index g = grabbed_[k];
+      const double d_g = static_cast<double>(origin[k][b]) - m.coords(g)[b];
+      const double start = d.upper ? -d_g : d_g;
+      if (start < d.dist.get(g)) {
+        d.dist.set(g, start);
+        d.heap.push(start, g);
+      }
+    }
+    if (grabbed_.empty()) d.done = true;  // nothing held: nothing limits
+  }
+}
+
+ToolLimitSearch::~ToolLimitSearch() = default;
+
+/// Dijkstra from the grabbed elements until every element closer than `cap` is settled or the
+/// bound is found (forward: paths follow d_next <= d_cur + slack, the lower bound of the tool;
+/// upper: the reversed edges).
+void ToolLimitSearch::extend(Direction& s, double cap) const {
+  const Model& m = m_;
+  const std::vector<std::uint8_t>& anchored = anchored_;
+  const std::vector<std::uint8_t>& grabbed = is_grabbed_;
+  const float margin = margin_;
+  const int b = s.axis;
+  const bool forward = !s.upper;
+  const int n_b = b == 0 ? m.dims.x : (b == 1 ? m.dims.y : m.dims.z);
+  while (!s.heap.empty()) {
+    // Named copies, not a structured binding: the lambda below captures d (clang 14 rejects that).
+    const RadixHeap::Entry top = s.heap.pop();
+    const double d = top.first;
+    const Index e = top.second;
+    if (d > s.dist.get(e)) continue;
+    if (d >= s.best) break;
+    if (d >= cap) {  // everything closer is settled; go on from here next time
+      s.heap.push(d, e);
+      s.settled = d;
+      return;
+    }
+    const Int3 c = m.coords(e);
+    const double rest = c[b];
+    // The wall: forward (lower bound) d_e >= -(rest + margin); reversed d_e <= N - 1 + margin - rest.
+    const double wall = forward ? rest + margin : (n_b - 1 + margin) - rest;
+    if (anchored[static_cast<std::size_t>(e)]) {
+      s.best = std::min(s.best, d);
+      continue;  // an anchor ends the chain
+    }
+    s.best = std::min(s.best, d + wall);
+    for_each_face_neighbour(m, c.x, c.y, c.z, e, [&](Index n, int a, int side, const LinkLimits& L) {
+      if (grabbed[static_cast<std::size_t>(n)]) return;
+      const double nd = d + usable(forward ? slack_to(L, a, side, b) : slack_from(L, a, side, b), s.step);
+      if (nd < s.dist.get(n)) {
+        s.dist.set(n, nd);
+        s.heap.push(nd, n);
+      }
+    });
+  }
+  s.done = true;  // only the bound is needed from now on
+  s.heap = RadixHeap();
+  s.dist.release();
+}
+
+void ToolLimitSearch::run(const std::vector<std::pair<int, double>>& work) {
+  // Independent searches on the available threads: the result does not depend on how many.
+  const int threads = std::max(1, std::min(static_cast<int>(work.size()), omp_get_max_threads()));
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
+  for (int j = 0; j < static_cast<int>(work.size()); ++j) {
+    const auto& [k, cap] = work[static_cast<std::size_t>(j)];
+    extend(dirs_[static_cast<std::size_t>(k)], cap);
+  }
+}
+
+void ToolLimitSearch::settle_for(Vec3 offset) {
+  // Each side must show that its limit admits the offset (or find its exact bound). A search
+  // that has to go on is given room: 1.25 times the distance needed and a quarter cell more,
+  // so a steady pull extends it every few frames, not every frame.
+  std::vector<std::pair<int, double>> work;  // (direction, cap)
+  for (int k = 0; k < 6; ++k) {
+    Direction& d = dirs_[static_cast<std::size_t>(k)];
+    const double want = d.upper ? offset[d.axis] : -offset[d.axis];
+    if (d.done || static_cast<double>(d.allowed()) >= want) continue;
+    work.emplace_back(k, std::max(want + d.step, 0.0) * 1.25 + 0.25);
+  }
+  while (!work.empty()) {
+    run(work);
+    // A cap reached still short of the offset (float rounding at the edge): go twice as far.
+    std::vector<std::pair<int, double>> again;
+    for (const auto& [k, cap] : work) {
+      const Direction& d = dirs_[static_cast<std::size_t>(k)];
+      const double want = d.upper ? offset[d.axis] : -offset[d.axis];
+      if (!d.done && static_cast<double>(d.allowed()) < want) again.emplace_back(k, 2.0 * cap + 1.0);
+    }
+    work = std::move(again);
+  }
+}
+
+Vec3 ToolLimitSearch::clamp(Vec3 offset) {
+  settle_for(offset);
+  // Where a search is not finished, its limit lies beyond the offset, which it then leaves alone.
   for (int b = 0; b < 3; ++b) {
-    // A grabbed element's position (origin + offset) is rounded to the coordinate's float grid:
-    // on an axis that rounds inward, one more float step keeps it feasible (a grab at the wall
-    // has no link to spare). Then rounded inwards so that a clamped offset is met after float
-    // rounding of the targets.
-    // Offset 0 stays allowed where the search allows it: the grabbed elements then stay where
-    // they are, with no rounding to allow for (a grab at rest on the wall with margin 0).
-    const double step = inward_rounding_on_axis(n[b], margin);
-    const auto below = [](double v) { return std::nextafter(static_cast<float>(std::min(v, 1e30)), -INFINITY); };
-    lim.hi[b] = std::max(below(bound[b][0] - step), std::min(below(bound[b][0]), 0.0f));
-    lim.lo[b] = -std::max(below(bound[b][1] - step), std::min(below(bound[b][1]), 0.0f));
+    const float hi = dirs_[static_cast<std::size_t>(2 * b)].allowed();
+    const float lo = -dirs_[static_cast<std::size_t>(2 * b + 1)].allowed();
+    offset[b] = std::min(std::max(offset[b], lo), hi);
+  }
+  return offset;
+}
+
+ToolLimit ToolLimitSearch::limit() {
+  std::vector<std::pair<int, double>> work;
+  for (int k = 0; k < 6; ++k)
+    if (!dirs_[static_cast<std::size_t>(k)].done) work.emplace_back(k, kInfD);
+  run(work);
+  ToolLimit lim;
+  for (int b = 0; b < 3; ++b) {
+    lim.hi[b] = dirs_[static_cast<std::size_t>(2 * b)].allowed();
+    lim.lo[b] = -dirs_[static_cast<std::size_t>(2 * b + 1)].allowed();
   }
   return lim;
+}
+
+ToolLimit tool_limit(const Model& m, const std::vector<Index>& grabbed, const std::vector<Vec3>& origin,
+                     const std::vector<std::uint8_t>& anchored, float margin) {
+  ToolLimitSearch search(m, grabbed, origin, anchored, margin);  // checks the sizes
+  if (grabbed.empty()) return {};
+  return search.limit();
 }
 
 }  // namespace hpcm::solver

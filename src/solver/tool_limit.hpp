@@ -10,6 +10,8 @@
 // axis-aligned box, computed once per grab by Dijkstra searches over the link slack (the
 // amount each link can stretch, compress or shear beyond its rest shape); limiting the tool
 // is a per-axis clamp into that box (the closest feasible tool position).
+#include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "hpcm/model.hpp"
@@ -28,5 +30,41 @@ struct ToolLimit {
 /// `margin` is the boundary margin. Throws hpcm::Error on size mismatches.
 ToolLimit tool_limit(const Model& m, const std::vector<Index>& grabbed, const std::vector<Vec3>& origin,
                      const std::vector<std::uint8_t>& anchored, float margin);
+
+/// The same limit, searched only as far as the offsets asked for need. A search that has
+/// settled every element closer than distance D has shown that its bound is at least D, and
+/// that is all the clamp needs while the offset stays below it; so a grab costs nothing up
+/// front, and a pull of a few cells explores the tissue within a few cells' slack of the
+/// grab, a frame at a time, not everything up to the limit. clamp() and limited() give exactly
+/// what ToolLimit::clamp and !ToolLimit::contains of tool_limit() give; limit() runs the
+/// searches to the end. The searches' memory follows the region they explore. Holds a
+/// reference to the model, which must outlive it.
+class ToolLimitSearch {
+ public:
+  ToolLimitSearch(const Model& m, std::vector<Index> grabbed, const std::vector<Vec3>& origin,
+                  std::vector<std::uint8_t> anchored, float margin);
+  ~ToolLimitSearch();
+  ToolLimitSearch(const ToolLimitSearch&) = delete;
+  ToolLimitSearch& operator=(const ToolLimitSearch&) = delete;
+
+  /// The closest feasible offset to `offset` (per-axis clamp into the feasible box).
+  Vec3 clamp(Vec3 offset);
+  /// The whole feasible box.
+  ToolLimit limit();
+
+ private:
+  struct Direction;
+  /// Runs the searches that cannot yet tell whether `offset` is feasible on their side.
+  void settle_for(Vec3 offset);
+  /// Runs each listed search (index into dirs_) up to its distance cap.
+  void run(const std::vector<std::pair<int, double>>& work);
+  void extend(Direction& d, double cap) const;
+  const Model& m_;
+  std::vector<Index> grabbed_;
+  std::vector<std::uint8_t> is_grabbed_;  ///< per element
+  std::vector<std::uint8_t> anchored_;    ///< per element
+  float margin_;
+  std::vector<Direction> dirs_;  ///< [axis * 2 + (0: upper bound, 1: lower bound)]
+};
 
 }  // namespace hpcm::solver

@@ -12,11 +12,14 @@
 
 #include <omp.h>
 
+#include <random>
 #include <utility>
+#include <vector>
 
 #include "hpcm/phantom.hpp"
 #include "hpcm/simulation.hpp"
 #include "hpcm/state.hpp"
+#include "solver/tool_limit.hpp"
 #include "solver_test_util.hpp"
 
 using namespace hpcm;
@@ -124,5 +127,66 @@ TEST(ToolLimitSearch, SameLimitsOnOneAndTwoThreads) {
     EXPECT_EQ(one.second[b], two.second[b]) << "axis " << b;
     EXPECT_LT(one.first[b], 0.0f);
     EXPECT_GT(one.second[b], 0.0f);
+  }
+}
+
+// The grab's limit is searched lazily (solver::ToolLimitSearch): each offset is clamped after
+// exploring only as far as it needs. Whatever offsets are asked for, in whatever order (small
+// steps, jumps, both signs, every axis), the clamp must be exactly that of the full search.
+TEST(ToolLimitSearch, LazyClampIsExactlyTheFullSearchsClamp) {
+  const Params p;
+  PhantomOptions o;
+  o.dims = {40, 40, 24};
+  const Model m = build_model(make_phantom(o), p);
+  std::vector<Index> grabbed;
+  std::vector<Vec3> origin;
+  for (int z = 10; z <= 14; ++z)
+    for (int y = 6; y <= 10; ++y)
+      for (int x = 18; x <= 22; ++x)
+        if ((x - 20) * (x - 20) + (y - 8) * (y - 8) + (z - 12) * (z - 12) <= 4) {
+          grabbed.push_back(m.index(x, y, z));
+          origin.push_back(m.rest(m.index(x, y, z)) + Vec3{0.1f, -0.05f, 0.0f});  // held slightly off rest
+        }
+  std::vector<std::uint8_t> anchored(static_cast<std::size_t>(m.size()), 0);
+  for (Index i = 0; i < m.size(); ++i) anchored[static_cast<std::size_t>(i)] = m.tissue[static_cast<std::size_t>(i)] == static_cast<std::uint8_t>(Tissue::Bone);
+  for (Index g : grabbed) anchored[static_cast<std::size_t>(g)] = 0;
+  const float margin = p.dynamics.margin;
+  const solver::ToolLimit full = solver::tool_limit(m, grabbed, origin, anchored, margin);
+  solver::ToolLimitSearch lazy(m, grabbed, origin, anchored, margin);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> step(-0.4f, 0.4f), near(-1.0f, 1.0f), jump(-30.0f, 30.0f);
+  Vec3 offset{};
+  int limited = 0;
+  for (int k = 0; k < 400; ++k) {
+    if (k % 50 == 0)
+      offset = Vec3{jump(rng), jump(rng), jump(rng)};  // far beyond the limit, then back
+    else if (k % 25 == 0)
+      offset = Vec3{near(rng), near(rng), near(rng)};
+    else
+      offset = offset + Vec3{step(rng), step(rng), step(rng)};
+    const Vec3 a = lazy.clamp(offset), b = full.clamp(offset);
+    for (int ax = 0; ax < 3; ++ax) ASSERT_EQ(a[ax], b[ax]) << "offset " << k << ", axis " << ax;
+    limited += full.contains(offset) ? 0 : 1;
+  }
+  std::printf("%d of 400 offsets limited\n", limited);
+  EXPECT_GT(limited, 50) << "the offsets must reach beyond the limit";
+  EXPECT_LT(limited, 400) << "and stay inside it too";
+  // Slow pulls along each axis and side from rest to past the limit (as a user drags): every
+  // search is extended step by step across its bound.
+  for (int ax = 0; ax < 3; ++ax)
+    for (const float sign : {1.0f, -1.0f}) {
+      solver::ToolLimitSearch pull(m, grabbed, origin, anchored, margin);
+      const float end = 1.2f * (sign > 0 ? full.hi[ax] : -full.lo[ax]) + 0.5f;
+      for (float t = 0.0f; t <= end; t += 0.05f) {
+        Vec3 o{};
+        o[ax] = sign * t;
+        const Vec3 a = pull.clamp(o), b = full.clamp(o);
+        ASSERT_EQ(a[ax], b[ax]) << "axis " << ax << ", side " << sign << ", offset " << t;
+      }
+    }
+  const solver::ToolLimit all = lazy.limit();
+  for (int ax = 0; ax < 3; ++ax) {
+    EXPECT_EQ(all.lo[ax], full.lo[ax]);
+    EXPECT_EQ(all.hi[ax], full.hi[ax]);
   }
 }
