@@ -321,16 +321,25 @@ class DeviceBackend final : public Backend {
     solver::BrickGrid::to_list(host_bricks_, check_list_);
     for (int e : fixed_) host_fixed_[static_cast<std::size_t>(e)] = 1;
     moved_elements_.clear();
-    // The flagged bricks and their face neighbours (where find_violations reads) in one copy.
-    cache_clear();
-    L_.grid.dilate_to_list(host_bricks_, prefetch_list_);
-    cache_fetch(prefetch_list_);
-    BrickCache access(*this);
     RestoreStats st;
-    seeds_.clear();
-    solver::find_violations(*m_, L_.grid, check_list_, access, wall_, seeds_, st);
-    host_moved_bricks_.assign(NB, 0);
-    restorer_.restore(*m_, L_.grid, seeds_, access, wall_, host_moved_bricks_, st);
+    try {
+      // The flagged bricks and their face neighbours (where find_violations reads) in one copy.
+      cache_clear();
+      L_.grid.dilate_to_list(host_bricks_, prefetch_list_);
+      cache_fetch(prefetch_list_);
+      BrickCache access(*this);
+      seeds_.clear();
+      solver::find_violations(*m_, L_.grid, check_list_, access, wall_, seeds_, st);
+      host_moved_bricks_.assign(NB, 0);
+      restorer_.restore(*m_, L_.grid, seeds_, access, wall_, host_moved_bricks_, st);
+    } catch (...) {
+      // A copy failed halfway (device error, out of memory): leave no half-done host state
+      // behind for the next restoration.
+      host_fixed_.assign(host_fixed_.size(), 0);
+      restorer_.init(*m_);
+      cache_clear();
+      throw;
+    }
     for (int e : fixed_) host_fixed_[static_cast<std::size_t>(e)] = 0;
     upload_moved();
     cache_clear();
@@ -547,6 +556,7 @@ class DeviceBackend final : public Backend {
     ids = nullptr;
     values = nullptr;
     const std::size_t room = std::max(n, 2 * cap);
+    cap = 0;  // no room if an allocation below fails
     ids = alloc<int>(room, what_ids);
     values = alloc<Vec3>(room * per, what_values);
     cap = room;

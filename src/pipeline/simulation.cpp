@@ -36,6 +36,7 @@ void Simulation::set_params(const Params& p) {
   if (materials || anchors) {
     // New classes / links: keep the current state, rebuild the model and reload.
     const State s = state();
+    tool_limit_.reset();  // it reads the model's links, which change now
     if (materials) rebuild_materials(model_, params_);
     backend_->load(model_, params_, s);
     ++positions_version_;

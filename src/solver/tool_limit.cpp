@@ -175,6 +175,7 @@ ToolLimitSearch::ToolLimitSearch(const Model& m, std::vector<Index> grabbed, con
     : m_(m), grabbed_(std::move(grabbed)), anchored_(std::move(anchored)), margin_(margin) {
   if (grabbed_.size() != origin.size()) throw Error("tool_limit: grabbed and origin sizes differ");
   if (static_cast<Index>(anchored_.size()) != m.size()) throw Error("tool_limit: anchor flags do not match the model");
+  if (grabbed_.empty()) throw Error("tool_limit: no grabbed elements");
   is_grabbed_.assign(static_cast<std::size_t>(m.size()), 0);
   for (Index g : grabbed_) is_grabbed_[static_cast<std::size_t>(g)] = 1;
   const int n[3] = {m.dims.x, m.dims.y, m.dims.z};
@@ -194,7 +195,6 @@ ToolLimitSearch::ToolLimitSearch(const Model& m, std::vector<Index> grabbed, con
         d.heap.push(start, g);
       }
     }
-    if (grabbed_.empty()) d.done = true;  // nothing held: nothing limits
   }
 }
 
@@ -281,14 +281,17 @@ void ToolLimitSearch::settle_for(Vec3 offset) {
 }
 
 Vec3 ToolLimitSearch::clamp(Vec3 offset) {
+  // min(max(offset, lo), hi), one side at a time: each side is settled for the value it is
+  // compared with. Where a search is not finished, its limit lies beyond that value, which it
+  // then leaves alone. The lower side may raise the offset (a grab held where the tissue
+  // cannot stay), so the upper side is settled for the raised value, not the requested one.
   settle_for(offset);
-  // Where a search is not finished, its limit lies beyond the offset, which it then leaves alone.
-  for (int b = 0; b < 3; ++b) {
-    const float hi = dirs_[static_cast<std::size_t>(2 * b)].allowed();
-    const float lo = -dirs_[static_cast<std::size_t>(2 * b + 1)].allowed();
-    offset[b] = std::min(std::max(offset[b], lo), hi);
-  }
-  return offset;
+  Vec3 raised = offset;
+  for (int b = 0; b < 3; ++b) raised[b] = std::max(offset[b], -dirs_[static_cast<std::size_t>(2 * b + 1)].allowed());
+  settle_for(raised);
+  Vec3 out = raised;
+  for (int b = 0; b < 3; ++b) out[b] = std::min(raised[b], dirs_[static_cast<std::size_t>(2 * b)].allowed());
+  return out;
 }
 
 ToolLimit ToolLimitSearch::limit() {
@@ -306,8 +309,10 @@ ToolLimit ToolLimitSearch::limit() {
 
 ToolLimit tool_limit(const Model& m, const std::vector<Index>& grabbed, const std::vector<Vec3>& origin,
                      const std::vector<std::uint8_t>& anchored, float margin) {
-  ToolLimitSearch search(m, grabbed, origin, anchored, margin);  // checks the sizes
+  if (grabbed.size() != origin.size()) throw Error("tool_limit: grabbed and origin sizes differ");
+  if (static_cast<Index>(anchored.size()) != m.size()) throw Error("tool_limit: anchor flags do not match the model");
   if (grabbed.empty()) return {};
+  ToolLimitSearch search(m, grabbed, origin, anchored, margin);
   return search.limit();
 }
 

@@ -35,9 +35,9 @@ ToolLimit tool_limit(const Model& m, const std::vector<Index>& grabbed, const st
 /// settled every element closer than distance D has shown that its bound is at least D, and
 /// that is all the clamp needs while the offset stays below it; so a grab costs nothing up
 /// front, and a pull of a few cells explores the tissue within a few cells' slack of the
-/// grab, a frame at a time, not everything up to the limit. clamp() and limited() give exactly
-/// what ToolLimit::clamp and !ToolLimit::contains of tool_limit() give; limit() runs the
-/// searches to the end. The searches' memory follows the region they explore. Holds a
+/// grab, a frame at a time, not everything up to the limit. clamp() gives exactly what
+/// ToolLimit::clamp of tool_limit() gives; limit() runs the searches to the end. Needs at
+/// least one grabbed element. The searches' memory follows the region they explore. Holds a
 /// reference to the model, which must outlive it.
 class ToolLimitSearch {
  public:

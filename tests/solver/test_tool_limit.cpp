@@ -190,3 +190,64 @@ TEST(ToolLimitSearch, LazyClampIsExactlyTheFullSearchsClamp) {
     EXPECT_EQ(all.hi[ax], full.hi[ax]);
   }
 }
+
+// Grabs held off rest (the grabbed elements' displacements differ), random tissue, random
+// anchors and margins: the lower side may then raise the offset (lo > 0), and the upper side
+// must be settled for the raised value. Lazy and full clamps must agree bit for bit.
+TEST(ToolLimitSearch, LazyClampMatchesOnRandomLatticesAndGrabsHeldOffRest) {
+  std::mt19937 rng(12345);
+  int cases = 0, raised = 0;
+  for (int t = 0; t < 120; ++t) {
+    const Params p;
+    const int kind = t % 3;
+    const Int3 dims = kind == 0   ? Int3{int(rng() % 10) + 3, int(rng() % 10) + 3, int(rng() % 8) + 3}
+                      : kind == 1 ? Int3{140, int(rng() % 4) + 2, int(rng() % 4) + 2}
+                                  : Int3{int(rng() % 5) + 2, 300, 3};
+    std::uniform_real_distribution<float> hu(-1100.0f, 1500.0f);
+    std::vector<float> hv(static_cast<std::size_t>(dims.x) * dims.y * dims.z);
+    for (float& h : hv) h = hu(rng);
+    const Model m = build_model(
+        test::make_volume(dims, [&](int x, int y, int z) { return hv[static_cast<std::size_t>(x + dims.x * (y + dims.y * z))]; }), p);
+    const float margin = rng() % 3 == 0 ? 0.0f : std::uniform_real_distribution<float>(0.0f, 5.0f)(rng);
+    std::vector<Index> grabbed;
+    std::vector<Vec3> origin;
+    std::vector<std::uint8_t> used(static_cast<std::size_t>(m.size()), 0);
+    std::uniform_real_distribution<float> off(-0.7f, 0.7f);
+    const int want_grabbed = static_cast<int>(rng() % 4) + 1;
+    for (int k = 0; k < want_grabbed; ++k) {
+      const Index i = static_cast<Index>(rng() % static_cast<unsigned>(m.size()));
+      if (used[static_cast<std::size_t>(i)]) continue;
+      used[static_cast<std::size_t>(i)] = 1;
+      grabbed.push_back(i);
+      origin.push_back(rng() % 2 ? m.rest(i) + Vec3{off(rng), off(rng), off(rng)} : m.rest(i));
+    }
+    std::vector<std::uint8_t> anchored(static_cast<std::size_t>(m.size()), 0);
+    const int anchor_mode = static_cast<int>(rng() % 3);
+    for (Index i = 0; i < m.size(); ++i)
+      if (!used[static_cast<std::size_t>(i)])
+        anchored[static_cast<std::size_t>(i)] =
+            anchor_mode == 0 ? 0 : anchor_mode == 1 ? m.tissue[static_cast<std::size_t>(i)] == static_cast<std::uint8_t>(Tissue::Bone) : rng() % 20 == 0;
+    const solver::ToolLimit full = solver::tool_limit(m, grabbed, origin, anchored, margin);
+    solver::ToolLimitSearch lazy(m, grabbed, origin, anchored, margin);
+    std::uniform_real_distribution<float> step(-0.3f, 0.3f), jump(-8.0f, 8.0f);
+    Vec3 o{};
+    for (int k = 0; k < 100; ++k) {
+      if (k % 37 == 0) o = Vec3{jump(rng), jump(rng), jump(rng)};
+      else o = o + Vec3{step(rng), step(rng), step(rng)};
+      if (k % 53 == 0) o = Vec3{};
+      const Vec3 a = lazy.clamp(o), b = full.clamp(o);
+      ++cases;
+      for (int ax = 0; ax < 3; ++ax) {
+        ASSERT_EQ(a[ax], b[ax]) << "lattice " << t << ", offset " << k << ", axis " << ax;
+        raised += b[ax] > o[ax] && o[ax] < full.lo[ax] && full.lo[ax] > 0.0f ? 1 : 0;
+      }
+    }
+    const solver::ToolLimit all = lazy.limit();
+    for (int ax = 0; ax < 3; ++ax) {
+      ASSERT_EQ(all.lo[ax], full.lo[ax]) << "lattice " << t;
+      ASSERT_EQ(all.hi[ax], full.hi[ax]) << "lattice " << t;
+    }
+  }
+  std::printf("%d clamps, %d raised to a positive lower limit\n", cases, raised);
+  EXPECT_GT(raised, 0) << "the case of a lower limit above 0 must occur";
+}
