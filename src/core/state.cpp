@@ -4,6 +4,7 @@
 #include <limits>
 
 #include "core/link_box.hpp"
+#include "core/parallel.hpp"
 
 namespace hpcm {
 
@@ -21,18 +22,22 @@ State State::rest(const Model& m) {
 float max_link_violation(const Model& m, const std::vector<Vec3>& pos) {
   const int nx = m.dims.x, ny = m.dims.y, nz = m.dims.z;
   const Index stride[3] = {1, nx, static_cast<Index>(nx) * ny};
-  float worst = 0.0f;
-#pragma omp parallel for schedule(static) reduction(max : worst)
-  for (int z = 0; z < nz; ++z)
-    for (int y = 0; y < ny; ++y)
-      for (int x = 0; x < nx; ++x) {
-        const Index i = m.index(x, y, z);
-        const int c[3] = {x, y, z};
-        const int d[3] = {nx, ny, nz};
-        for (int a = 0; a < 3; ++a)
-          if (c[a] + 1 < d[a]) worst = std::max(worst, link_violation(pos[i], pos[i + stride[a]], m.link(a, i), a));
-      }
-  return worst;
+  const int parts = pass_parts(nz);
+  std::vector<float> worst(static_cast<std::size_t>(parts), 0.0f);
+  run_parts(nz, parts, [&](int part, int z0, int z1) {
+    float w = 0.0f;
+    for (int z = z0; z < z1; ++z)
+      for (int y = 0; y < ny; ++y)
+        for (int x = 0; x < nx; ++x) {
+          const Index i = m.index(x, y, z);
+          const int c[3] = {x, y, z};
+          const int d[3] = {nx, ny, nz};
+          for (int a = 0; a < 3; ++a)
+            if (c[a] + 1 < d[a]) w = std::max(w, link_violation(pos[i], pos[i + stride[a]], m.link(a, i), a));
+        }
+    worst[static_cast<std::size_t>(part)] = w;
+  });
+  return *std::max_element(worst.begin(), worst.end());
 }
 
 CellJacobianStats cell_jacobian(const Model& m, const std::vector<Vec3>& pos) {
@@ -40,31 +45,43 @@ CellJacobianStats cell_jacobian(const Model& m, const std::vector<Vec3>& pos) {
   const int nx = m.dims.x, ny = m.dims.y, nz = m.dims.z;
   if (nx < 2 || ny < 2 || nz < 2) return st;
   const Index sy = nx, sz = static_cast<Index>(nx) * ny;
+  const int parts = pass_parts(nz - 1);
+  std::vector<double> part_min(static_cast<std::size_t>(parts), 1.0);
+  std::vector<Index> part_folded(static_cast<std::size_t>(parts), 0);
+  run_parts(nz - 1, parts, [&](int part, int z0, int z1) {
+    double min_det = 1.0;
+    Index folded = 0;
+    for (int z = z0; z < z1; ++z)
+      for (int y = 0; y < ny - 1; ++y)
+        for (int x = 0; x < nx - 1; ++x) {
+          const Index base = m.index(x, y, z);
+          double cell_min = 1e30;
+          for (int k = 0; k < 2; ++k)
+            for (int j = 0; j < 2; ++j)
+              for (int i = 0; i < 2; ++i) {
+                const Index c = base + i + j * sy + k * sz;
+                // Edges to the corner's neighbours inside the cell, oriented along +x, +y, +z.
+                const Vec3 p = pos[c];
+                const Vec3 ex = i ? p - pos[c - 1] : pos[c + 1] - p;
+                const Vec3 ey = j ? p - pos[c - sy] : pos[c + sy] - p;
+                const Vec3 ez = k ? p - pos[c - sz] : pos[c + sz] - p;
+                const double det = double(ex.x) * (double(ey.y) * ez.z - double(ey.z) * ez.y) -
+                                   double(ex.y) * (double(ey.x) * ez.z - double(ey.z) * ez.x) +
+                                   double(ex.z) * (double(ey.x) * ez.y - double(ey.y) * ez.x);
+                cell_min = std::min(cell_min, det);
+              }
+          min_det = std::min(min_det, cell_min);
+          if (cell_min <= 0.0) ++folded;
+        }
+    part_min[static_cast<std::size_t>(part)] = min_det;
+    part_folded[static_cast<std::size_t>(part)] = folded;
+  });
   double min_det = 1.0;
   Index folded = 0;
-#pragma omp parallel for schedule(static) reduction(min : min_det) reduction(+ : folded)
-  for (int z = 0; z < nz - 1; ++z)
-    for (int y = 0; y < ny - 1; ++y)
-      for (int x = 0; x < nx - 1; ++x) {
-        const Index base = m.index(x, y, z);
-        double cell_min = 1e30;
-        for (int k = 0; k < 2; ++k)
-          for (int j = 0; j < 2; ++j)
-            for (int i = 0; i < 2; ++i) {
-              const Index c = base + i + j * sy + k * sz;
-              // Edges to the corner's neighbours inside the cell, oriented along +x, +y, +z.
-              const Vec3 p = pos[c];
-              const Vec3 ex = i ? p - pos[c - 1] : pos[c + 1] - p;
-              const Vec3 ey = j ? p - pos[c - sy] : pos[c + sy] - p;
-              const Vec3 ez = k ? p - pos[c - sz] : pos[c + sz] - p;
-              const double det = double(ex.x) * (double(ey.y) * ez.z - double(ey.z) * ez.y) -
-                                 double(ex.y) * (double(ey.x) * ez.z - double(ey.z) * ez.x) +
-                                 double(ex.z) * (double(ey.x) * ez.y - double(ey.y) * ez.x);
-              cell_min = std::min(cell_min, det);
-            }
-        min_det = std::min(min_det, cell_min);
-        if (cell_min <= 0.0) ++folded;
-      }
+  for (int t = 0; t < parts; ++t) {
+    min_det = std::min(min_det, part_min[static_cast<std::size_t>(t)]);
+    folded += part_folded[static_cast<std::size_t>(t)];
+  }
   st.min_det = static_cast<float>(min_det);
   st.folded = folded;
   st.cells = static_cast<Index>(nx - 1) * (ny - 1) * (nz - 1);

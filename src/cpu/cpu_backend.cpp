@@ -29,7 +29,9 @@ void CpuBackend::load(const Model& m, const Params& p, const State& s) {
   k_ = dynamics::make_constants(p.dynamics, m.dims);
   wall_ = solver::make_wall(m.dims, p.dynamics.margin);
   relax_threshold_sq_ = squared_threshold(p.solver.relax_threshold);
-  st_.load(m, s);
+  const int threads = default_thread_count();
+  if (!pool_ || pool_->threads() != threads) pool_ = std::make_unique<WorkerPool>(threads);
+  st_.load(m, s, *pool_);
   grid_.init(m.dims, p.solver.brick_size);
   const std::size_t nb = static_cast<std::size_t>(grid_.count);
   touched_.assign(nb, 0);
@@ -42,8 +44,6 @@ void CpuBackend::load(const Model& m, const Params& p, const State& s) {
   worked_.assign(nb, 0);
   fixed_.clear();
   targets_.clear();
-  const int threads = default_thread_count();
-  if (!pool_ || pool_->threads() != threads) pool_ = std::make_unique<WorkerPool>(threads);
   propagation_.init(m, st_.lay, grid_);
   const SimdKernels kernels = select_kernels(chosen_kernels(forced_kernel_));
   kernel_name_ = kernels.name;

@@ -39,8 +39,8 @@ class CpuBackend final : public Backend {
   Index active_elements() const override;
   void mark(int slot) override;
   double elapsed_ms(int from_slot, int to_slot) override;
-  void download(State& s) override { st_.store_state(s); }
-  void download_positions(std::vector<Vec3>& pos) override { st_.store_positions(pos); }
+  void download(State& s) override { st_.store_state(s, *pool_); }
+  void download_positions(std::vector<Vec3>& pos) override { st_.store_positions(pos, *pool_); }
   Vec3 position(Index i) override { return st_.position(i); }
 
   /// The SIMD kernels in use ("avx512", "avx2" or "sse2").

@@ -1,26 +1,30 @@
 #include "cpu/storage.hpp"
 
+#include <cstdint>
 #include <limits>
 
 namespace hpcm::cpu {
 
 namespace {
 
-/// f(u, k) for every element, u its linear index and k its storage index; planes in parallel.
+/// f(u, k) for every element, u its linear index and k its storage index; planes on the
+/// backend's threads (not OpenMP: this runs every frame the positions are read, and OpenMP's
+/// idle threads would spin on beside the simulation's, core/parallel.hpp).
 template <class F>
-void for_each_element(const Layout& lay, F f) {
-  const int nx = lay.dims.x, ny = lay.dims.y, nz = lay.dims.z;
-#pragma omp parallel for schedule(static)
-  for (int z = 0; z < nz; ++z)
+void for_each_element(const Layout& lay, WorkerPool& pool, F f) {
+  const int nx = lay.dims.x, ny = lay.dims.y;
+  pool.run(lay.dims.z, [&](std::int64_t zz) {
+    const int z = static_cast<int>(zz);
     for (int y = 0; y < ny; ++y) {
       const Index i0 = static_cast<Index>(nx) * (y + static_cast<Index>(ny) * z);
       for (int x = 0; x < nx; ++x) f(static_cast<std::size_t>(i0 + x), static_cast<std::size_t>(lay.at(x, y, z)));
     }
+  });
 }
 
 }  // namespace
 
-void Storage::load(const Model& m, const State& s) {
+void Storage::load(const Model& m, const State& s, WorkerPool& pool) {
   lay.init(m.dims);
   const std::size_t np = static_cast<std::size_t>(lay.span) + kPad;
   // Array starts 7 cache lines apart (distinct sets for 9 arrays and more).
@@ -36,7 +40,7 @@ void Storage::load(const Model& m, const State& s) {
   weight.assign(np, 1.0f, next());
   tissue.assign(np, 0, next());
   flags.assign(np, kFixed, next());  // padding and stagger gaps never move
-  for_each_element(lay, [&](std::size_t u, std::size_t k) {
+  for_each_element(lay, pool, [&](std::size_t u, std::size_t k) {
     for (int a = 0; a < 3; ++a) {
       p[a][k] = q[a][k] = s.pos[u][a];  // invariant between frames: X- == X
       v[a][k] = s.vel[u][a];
@@ -48,18 +52,18 @@ void Storage::load(const Model& m, const State& s) {
   });
 }
 
-void Storage::store_positions(std::vector<Vec3>& pos) const {
+void Storage::store_positions(std::vector<Vec3>& pos, WorkerPool& pool) const {
   pos.resize(static_cast<std::size_t>(lay.size));
-  for_each_element(lay, [&](std::size_t u, std::size_t k) { pos[u] = Vec3{p[0][k], p[1][k], p[2][k]}; });
+  for_each_element(lay, pool, [&](std::size_t u, std::size_t k) { pos[u] = Vec3{p[0][k], p[1][k], p[2][k]}; });
 }
 
-void Storage::store_state(State& s) const {
-  store_positions(s.pos);
+void Storage::store_state(State& s, WorkerPool& pool) const {
+  store_positions(s.pos, pool);
   const std::size_t n = static_cast<std::size_t>(lay.size);
   s.vel.resize(n);
   s.time.resize(n);
   s.flags.resize(n);
-  for_each_element(lay, [&](std::size_t u, std::size_t k) {
+  for_each_element(lay, pool, [&](std::size_t u, std::size_t k) {
     s.vel[u] = Vec3{v[0][k], v[1][k], v[2][k]};
     s.time[u] = time[k];
     s.flags[u] = flags[k];

@@ -23,6 +23,7 @@
 
 #include "hpcm/model.hpp"
 #include "hpcm/state.hpp"
+#include "cpu/worker_pool.hpp"
 
 namespace hpcm::cpu {
 
@@ -115,10 +116,10 @@ struct Storage {
   static constexpr std::size_t kPad = 16;
 
   /// Lays out the model's per-element data and the state (positions, velocities, flags).
-  void load(const Model& m, const State& s);
+  void load(const Model& m, const State& s, WorkerPool& pool);
   /// Positions and velocities back in linear order.
-  void store_positions(std::vector<Vec3>& pos) const;
-  void store_state(State& s) const;
+  void store_positions(std::vector<Vec3>& pos, WorkerPool& pool) const;
+  void store_state(State& s, WorkerPool& pool) const;
   Vec3 position(Index linear) const {
     const Index k = lay.at(linear);
     return {p[0][k], p[1][k], p[2][k]};

@@ -1,7 +1,5 @@
 #include "solver/tool_limit.hpp"
 
-#include <omp.h>
-
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -12,6 +10,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/parallel.hpp"
 #include "solver/neighbours.hpp"
 #include "solver/restore.hpp"
 
@@ -247,13 +246,15 @@ void ToolLimitSearch::extend(Direction& s, double cap) const {
 }
 
 void ToolLimitSearch::run(const std::vector<std::pair<int, double>>& work) {
-  // Independent searches on the available threads: the result does not depend on how many.
-  const int threads = std::max(1, std::min(static_cast<int>(work.size()), omp_get_max_threads()));
-#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
-  for (int j = 0; j < static_cast<int>(work.size()); ++j) {
-    const auto& [k, cap] = work[static_cast<std::size_t>(j)];
-    extend(dirs_[static_cast<std::size_t>(k)], cap);
-  }
+  // Independent searches on threads of their own (core/parallel.hpp: tool moves come every
+  // frame, so no OpenMP): the result does not depend on how many.
+  const int n = static_cast<int>(work.size());
+  run_parts(n, pass_parts(n), [&](int, int lo, int hi) {
+    for (int j = lo; j < hi; ++j) {
+      const auto& [k, cap] = work[static_cast<std::size_t>(j)];
+      extend(dirs_[static_cast<std::size_t>(k)], cap);
+    }
+  });
 }
 
 void ToolLimitSearch::settle_for(Vec3 offset) {
