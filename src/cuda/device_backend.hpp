@@ -475,12 +475,9 @@ class DeviceBackend final : public Backend {
     if (cache_slot_[static_cast<std::size_t>(b)] < 0) {
       ++cache_misses_;
       fetch_list_.assign(1, b);
-      const Int3 c = g.brick_coords(b);
-      const Index sy = g.nb.x, sz = static_cast<Index>(g.nb.x) * g.nb.y;
-      const bool face[6] = {c.x > 0, c.x + 1 < g.nb.x, c.y > 0, c.y + 1 < g.nb.y, c.z > 0, c.z + 1 < g.nb.z};
-      const Index step[6] = {-1, 1, -sy, sy, -sz, sz};
-      for (int f = 0; f < 6; ++f)
-        if (face[f] && cache_slot_[static_cast<std::size_t>(b + step[f])] < 0) fetch_list_.push_back(b + step[f]);
+      g.for_each_face_neighbour(b, [&](Index n) {
+        if (cache_slot_[static_cast<std::size_t>(n)] < 0) fetch_list_.push_back(n);
+      });
       cache_fetch(fetch_list_);
     }
     const int bs = g.size;

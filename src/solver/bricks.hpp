@@ -51,6 +51,18 @@ struct BrickGrid {
     return (c.x > 0 && flags[b - 1]) || (c.x + 1 < nb.x && flags[b + 1]) || (c.y > 0 && flags[b - sy]) ||
            (c.y + 1 < nb.y && flags[b + sy]) || (c.z > 0 && flags[b - sz]) || (c.z + 1 < nb.z && flags[b + sz]);
   }
+  /// f(n) for each face neighbour n of brick b inside the grid.
+  template <class F>
+  HPCM_HD void for_each_face_neighbour(Index b, F&& f) const {
+    const Int3 c = brick_coords(b);
+    const Index sy = nb.x, sz = static_cast<Index>(nb.x) * nb.y;
+    if (c.x > 0) f(b - 1);
+    if (c.x + 1 < nb.x) f(b + 1);
+    if (c.y > 0) f(b - sy);
+    if (c.y + 1 < nb.y) f(b + sy);
+    if (c.z > 0) f(b - sz);
+    if (c.z + 1 < nb.z) f(b + sz);
+  }
   /// Host: list of bricks with flag set, or adjacent (face) to one.
   void dilate_to_list(const std::vector<std::uint8_t>& flags, std::vector<Index>& out) const;
   /// Host: list of bricks with flag set.

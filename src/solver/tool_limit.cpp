@@ -150,6 +150,12 @@ float side_limit(double bound, double step) {
   return std::max(below(bound - step), std::min(below(bound), 0.0f));
 }
 
+void check_inputs(const Model& m, const std::vector<Index>& grabbed, const std::vector<Vec3>& origin,
+                  const std::vector<std::uint8_t>& anchored) {
+  if (grabbed.size() != origin.size()) throw Error("tool_limit: grabbed and origin sizes differ");
+  if (static_cast<Index>(anchored.size()) != m.size()) throw Error("tool_limit: anchor flags do not match the model");
+}
+
 }  // namespace
 
 /// One of the six searches (an axis, one side), resumable: it stops at a distance cap with
@@ -167,13 +173,17 @@ struct ToolLimitSearch::Direction {
   /// A lower bound of the search's bound: exact when done.
   double known() const { return done ? best : std::min(best, settled); }
   float allowed() const { return side_limit(known(), step); }
+  /// How far this side must allow the offset to go (positive toward the side).
+  double wanted(Vec3 offset) const { return upper ? offset[axis] : -offset[axis]; }
+  /// Whether the clamp of `offset` can be told on this side from what is searched so far.
+  bool settled_for(Vec3 offset) const { return done || static_cast<double>(allowed()) >= wanted(offset); }
 };
+
 
 ToolLimitSearch::ToolLimitSearch(const Model& m, std::vector<Index> grabbed, const std::vector<Vec3>& origin,
                                  std::vector<std::uint8_t> anchored, float margin)
     : m_(m), grabbed_(std::move(grabbed)), anchored_(std::move(anchored)), margin_(margin) {
-  if (grabbed_.size() != origin.size()) throw Error("tool_limit: grabbed and origin sizes differ");
-  if (static_cast<Index>(anchored_.size()) != m.size()) throw Error("tool_limit: anchor flags do not match the model");
+  check_inputs(m, grabbed_, origin, anchored_);
   if (grabbed_.empty()) throw Error("tool_limit: no grabbed elements");
   is_grabbed_.assign(static_cast<std::size_t>(m.size()), 0);
   for (Index g : grabbed_) is_grabbed_[static_cast<std::size_t>(g)] = 1;
@@ -263,20 +273,15 @@ void ToolLimitSearch::settle_for(Vec3 offset) {
   // so a steady pull extends it every few frames, not every frame.
   std::vector<std::pair<int, double>> work;  // (direction, cap)
   for (int k = 0; k < 6; ++k) {
-    Direction& d = dirs_[static_cast<std::size_t>(k)];
-    const double want = d.upper ? offset[d.axis] : -offset[d.axis];
-    if (d.done || static_cast<double>(d.allowed()) >= want) continue;
-    work.emplace_back(k, std::max(want + d.step, 0.0) * 1.25 + 0.25);
+    const Direction& d = dirs_[static_cast<std::size_t>(k)];
+    if (!d.settled_for(offset)) work.emplace_back(k, std::max(d.wanted(offset) + d.step, 0.0) * 1.25 + 0.25);
   }
   while (!work.empty()) {
     run(work);
     // A cap reached still short of the offset (float rounding at the edge): go twice as far.
     std::vector<std::pair<int, double>> again;
-    for (const auto& [k, cap] : work) {
-      const Direction& d = dirs_[static_cast<std::size_t>(k)];
-      const double want = d.upper ? offset[d.axis] : -offset[d.axis];
-      if (!d.done && static_cast<double>(d.allowed()) < want) again.emplace_back(k, 2.0 * cap + 1.0);
-    }
+    for (const auto& [k, cap] : work)
+      if (!dirs_[static_cast<std::size_t>(k)].settled_for(offset)) again.emplace_back(k, 2.0 * cap + 1.0);
     work = std::move(again);
   }
 }
@@ -310,8 +315,7 @@ ToolLimit ToolLimitSearch::limit() {
 
 ToolLimit tool_limit(const Model& m, const std::vector<Index>& grabbed, const std::vector<Vec3>& origin,
                      const std::vector<std::uint8_t>& anchored, float margin) {
-  if (grabbed.size() != origin.size()) throw Error("tool_limit: grabbed and origin sizes differ");
-  if (static_cast<Index>(anchored.size()) != m.size()) throw Error("tool_limit: anchor flags do not match the model");
+  check_inputs(m, grabbed, origin, anchored);
   if (grabbed.empty()) return {};
   ToolLimitSearch search(m, grabbed, origin, anchored, margin);
   return search.limit();
