@@ -6,7 +6,19 @@
 
 #include "hpcm/state.hpp"
 
+#if defined(__x86_64__) || defined(__i386__)
+#include <immintrin.h>
+#endif
+
 namespace hpcm::cpu {
+
+namespace {
+void cpu_relax() {
+#if defined(__x86_64__) || defined(__i386__)
+  _mm_pause();
+#endif
+}
+}  // namespace
 
 using solver::Neighbour;
 using solver::Wall;
@@ -115,11 +127,7 @@ void Relaxation::init(const solver::BrickGrid& grid, RelaxRunKernel kernel) {
 // skipped element would compute what it computed last time, so this gives the same floats as
 // processing everything.
 //
-// Threads split the phases: thread k takes a contiguous group (the first of which meets each
-// plane first on that thread, and prefetches it) and follows the thread of the earlier phases
-// one step behind, waiting only on that thread's progress counter (no barrier
-// at all, and no waiting on a thread that has not started: a thread that starts late simply
-// finds the work of the earlier phases done).
+// The threads share the phases dynamically (work_until_done below).
 void Relaxation::cells_to_process(int p, int z, std::uint8_t* active) const {
   const Index n = cells_;
   const int nbx = grid_.nb.x, nz = grid_.dims.z;
@@ -172,6 +180,61 @@ float Relaxation::phase(const RelaxContext& ctx, int p, int z, bool prefetch, In
   return mc;
 }
 
+// Phase p may process plane z once phase p - 1 has finished plane z + 1 (or the last plane),
+// and the planes of one phase go in ascending order: that is all the schedule above needs, so
+// whichever thread runs a plane computes the same floats. A thread takes the deepest phase whose
+// next plane is ready (keeping the band of planes in flight narrow), one plane at a time; one
+// thread at most works on a phase at once. Nothing waits for a thread that has not started
+// (the others take its share), no thread idles while another works through a fixed share of
+// the phases, and the wavefront fills and drains in a few planes. (A fixed split of the phases
+// between the threads, measured before this: the second thread waited 4-6 ms per frame.)
+bool Relaxation::plane_ready(int p, int z) const {
+  const int nz = grid_.dims.z;
+  if (z >= nz) return false;
+  return p == 0 || progress_[static_cast<std::size_t>(p - 1)].planes.load(std::memory_order_acquire) >= std::min(z + 2, nz);
+}
+
+void Relaxation::work_until_done(const RelaxContext& ctx, int P) {
+  const int nz = grid_.dims.z;
+  PhaseProgress& last = progress_[static_cast<std::size_t>(P - 1)];
+  for (;;) {
+    // Read before the test for the end: a last plane finished between the two would otherwise
+    // leave this thread asleep waiting for a plane after it.
+    const std::uint32_t seen = planes_done_.load(std::memory_order_seq_cst);
+    if (last.planes.load(std::memory_order_acquire) >= nz) return;
+    bool worked = false;
+    for (int p = P - 1; p >= 0 && !worked; --p) {
+      PhaseProgress& ph = progress_[static_cast<std::size_t>(p)];
+      if (!plane_ready(p, ph.planes.load(std::memory_order_acquire))) continue;
+      if (ph.claimed.exchange(true, std::memory_order_acquire)) continue;
+      const int z = ph.planes.load(std::memory_order_relaxed);  // as of the claim
+      if (plane_ready(p, z)) {
+        // Phase 0 meets each plane first: it prefetches what the wavefront reads next.
+        ph.max_correction = std::max(ph.max_correction, phase(ctx, p, z, p == 0, ph.cells));
+        ph.planes.store(z + 1, std::memory_order_release);
+        worked = true;
+      }
+      ph.claimed.store(false, std::memory_order_release);
+    }
+    if (worked) {
+      planes_done_.fetch_add(1, std::memory_order_seq_cst);
+      if (sleepers_.load(std::memory_order_seq_cst) > 0) planes_done_.notify_all();
+      continue;
+    }
+    // Nothing ready: another thread holds the work this one waits for. Spin briefly (a plane
+    // takes tens of microseconds), then sleep until a plane is finished.
+    bool moved = false;
+    for (int spin = 0; spin < 256 && !moved; ++spin) {
+      cpu_relax();
+      moved = planes_done_.load(std::memory_order_acquire) != seen;
+    }
+    if (moved) continue;
+    sleepers_.fetch_add(1, std::memory_order_seq_cst);
+    if (planes_done_.load(std::memory_order_seq_cst) == seen) planes_done_.wait(seen, std::memory_order_seq_cst);
+    sleepers_.fetch_sub(1, std::memory_order_seq_cst);
+  }
+}
+
 RelaxStats Relaxation::run(const RelaxContext& ctx, int sweeps, std::vector<std::uint8_t>& hot,
                            std::vector<std::uint8_t>& touched, std::vector<std::uint8_t>& worked, WorkerPool& pool) {
   RelaxStats st;
@@ -186,43 +249,28 @@ RelaxStats Relaxation::run(const RelaxContext& ctx, int sweeps, std::vector<std:
   }
   if (!any) return st;
   changed_.assign(static_cast<std::size_t>(P) * nz * cells_, 0);
-  phase_max_.assign(static_cast<std::size_t>(P), 0.0f);
-  phase_cells_.assign(static_cast<std::size_t>(P), 0);
+  if (progress_size_ < P) {
+    progress_ = std::make_unique<PhaseProgress[]>(static_cast<std::size_t>(P));
+    progress_size_ = P;
+  }
+  for (int p = 0; p < P; ++p) {
+    progress_[static_cast<std::size_t>(p)].max_correction = 0.0f;
+    progress_[static_cast<std::size_t>(p)].cells = 0;
+  }
+  for (int p = 0; p < P; ++p) {
+    PhaseProgress& ph = progress_[static_cast<std::size_t>(p)];
+    ph.planes.store(0, std::memory_order_relaxed);
+    ph.claimed.store(false, std::memory_order_relaxed);
+  }
   const int T = std::min(pool.threads(), P);
-  progress_ = std::vector<std::atomic<int>>(static_cast<std::size_t>(T));
-  for (auto& a : progress_) a.store(-1);
-  const int steps = nz + P - 1;
-  pool.run(T, [&](std::int64_t k) {
-    const int p0 = static_cast<int>(k * P / T), p1 = static_cast<int>((k + 1) * P / T);
-    std::vector<float> mc(static_cast<std::size_t>(p1 - p0), 0.0f);
-    std::vector<Index> cells(static_cast<std::size_t>(p1 - p0), 0);
-    for (int t = 0; t < steps; ++t) {
-      if (k > 0) {  // the earlier phases must have finished this step
-        std::atomic<int>& before = progress_[static_cast<std::size_t>(k - 1)];
-        for (int spin = 0; before.load(std::memory_order_acquire) < t; ++spin)
-          if (spin > 64) before.wait(before.load(std::memory_order_acquire), std::memory_order_acquire);
-      }
-      for (int p = p0; p < p1; ++p) {
-        const int z = t - p;
-        if (z < 0 || z >= nz) continue;
-        mc[static_cast<std::size_t>(p - p0)] =
-            std::max(mc[static_cast<std::size_t>(p - p0)], phase(ctx, p, z, p == p0, cells[static_cast<std::size_t>(p - p0)]));
-      }
-      progress_[static_cast<std::size_t>(k)].store(t, std::memory_order_release);
-      progress_[static_cast<std::size_t>(k)].notify_all();
-    }
-    for (int p = p0; p < p1; ++p) {
-      phase_max_[static_cast<std::size_t>(p)] = mc[static_cast<std::size_t>(p - p0)];
-      phase_cells_[static_cast<std::size_t>(p)] = cells[static_cast<std::size_t>(p - p0)];
-    }
-  });
+  pool.run(T, [&](std::int64_t) { work_until_done(ctx, P); });
   // Statistics and the bricks for the next frame.
   std::fill(hot.begin(), hot.end(), 0);
   for (int s = 0; s < sweeps; ++s) {
-    const Index cells = phase_cells_[static_cast<std::size_t>(2 * s)] + phase_cells_[static_cast<std::size_t>(2 * s + 1)];
+    const Index cells = progress_[static_cast<std::size_t>(2 * s)].cells + progress_[static_cast<std::size_t>(2 * s + 1)].cells;
     if (cells == 0) break;
     st.sweeps = s + 1;
-    st.max_correction = std::max(phase_max_[static_cast<std::size_t>(2 * s)], phase_max_[static_cast<std::size_t>(2 * s + 1)]);
+    st.max_correction = std::max(progress_[static_cast<std::size_t>(2 * s)].max_correction, progress_[static_cast<std::size_t>(2 * s + 1)].max_correction);
   }
   const int B = grid_.size;
   for (int p = 0; p < P; ++p)

@@ -11,6 +11,7 @@
 // neighbours' boxes do not intersect, take the scalar rule.
 #include <atomic>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "cpu/storage.hpp"
@@ -70,17 +71,31 @@ class Relaxation {
  private:
   /// Per cell of plane z, whether phase p must process it (see the schedule in relax.cpp).
   void cells_to_process(int p, int z, std::uint8_t* active) const;
-  /// One phase over plane z; `prefetch`: the thread's first pass over that plane this frame.
+  /// One phase over plane z; `prefetch`: the first pass over that plane this frame.
   float phase(const RelaxContext& ctx, int p, int z, bool prefetch, Index& active_cells);
+  /// Whether phase p may process plane z now (its inputs are final).
+  bool plane_ready(int p, int z) const;
+  /// One thread's share of a run() with P phases: takes ready planes until all are done.
+  void work_until_done(const RelaxContext& ctx, int P);
   std::uint8_t* worked_ = nullptr;  ///< per brick, during run()
   solver::BrickGrid grid_;
   RelaxRunKernel kernel_ = nullptr;
   Index cells_ = 0;                     ///< brick columns per plane
   std::vector<std::uint8_t> start_;     ///< per brick: work of the first sweep
   std::vector<std::uint8_t> changed_;   ///< [phase][plane][cell]: an element moved
-  std::vector<float> phase_max_;
-  std::vector<Index> phase_cells_;
-  std::vector<std::atomic<int>> progress_;  ///< per thread: last step finished
+  /// Per phase of a run(): planes finished (in ascending order), whether a thread is working
+  /// on it, and what it found (written only by the thread holding the claim). One cache line
+  /// each: the threads poll the counters.
+  struct alignas(64) PhaseProgress {
+    std::atomic<int> planes{0};
+    std::atomic<bool> claimed{false};
+    float max_correction = 0.0f;
+    Index cells = 0;
+  };
+  std::unique_ptr<PhaseProgress[]> progress_;
+  int progress_size_ = 0;
+  std::atomic<std::uint32_t> planes_done_{0};  ///< bumped per plane: idle threads wait on it (futex-sized)
+  std::atomic<int> sleepers_{0};               ///< threads waiting on planes_done_
 };
 
 }  // namespace hpcm::cpu
