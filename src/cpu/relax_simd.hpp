@@ -9,7 +9,9 @@
 // (solver::relax_coordinate, nextafterf on the bit pattern) and the clamp. No fused
 // multiply-add (the build uses -ffp-contract=off, and the wide files do not enable FMA). Lanes
 // whose boxes do not intersect, and the border elements of the lattice, go to the scalar rule.
-// The last vector of a run is masked; its loads may run past the run into the storage's padding.
+// The last vector of a run is masked; its loads may run past the run into the next row, the
+// stagger gap or the next plane, where another thread may be writing (the relaxation of an
+// earlier half-sweep two planes ahead): those lanes are masked out and their values never used.
 #include <algorithm>
 #include <cmath>
 
