@@ -254,13 +254,11 @@ RelaxStats Relaxation::run(const RelaxContext& ctx, int sweeps, std::vector<std:
     progress_size_ = P;
   }
   for (int p = 0; p < P; ++p) {
-    progress_[static_cast<std::size_t>(p)].max_correction = 0.0f;
-    progress_[static_cast<std::size_t>(p)].cells = 0;
-  }
-  for (int p = 0; p < P; ++p) {
     PhaseProgress& ph = progress_[static_cast<std::size_t>(p)];
     ph.planes.store(0, std::memory_order_relaxed);
     ph.claimed.store(false, std::memory_order_relaxed);
+    ph.max_correction = 0.0f;
+    ph.cells = 0;
   }
   const int T = std::min(pool.threads(), P);
   pool.run(T, [&](std::int64_t) { work_until_done(ctx, P); });

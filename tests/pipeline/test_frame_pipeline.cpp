@@ -43,6 +43,17 @@ State displaced_state(const Model& m, Index e, Vec3 d) {
   return s;
 }
 
+/// The scenario played to its end with `threads` CPU threads; `relaxed_frames` counts the
+/// frames whose relaxation did any sweep.
+State play_with_threads(const Model& m, const Params& p, const Scenario& sc, int threads, int& relaxed_frames) {
+  omp_set_num_threads(threads);
+  Simulation sim(m, p);
+  ScenarioPlayer player(sc, sim);
+  relaxed_frames = 0;
+  while (!player.done()) relaxed_frames += player.step().relax_sweeps > 0 ? 1 : 0;
+  return sim.state();
+}
+
 }  // namespace
 
 // After release, an element displaced so that its links are violated: an idle frame runs no
@@ -236,13 +247,10 @@ TEST(FramePipeline, RelaxationGivesTheSameBitsWhicheverThreadRunsAPlane) {
     p.solver.relax_sweeps = sweeps;
     const Model m = build_model(make_phantom(o), p);
     auto run = [&](int threads) {
-      omp_set_num_threads(threads);
-      Simulation sim(m, p);
-      ScenarioPlayer player(sc, sim);
       int relaxed_frames = 0;
-      while (!player.done()) relaxed_frames += player.step().relax_sweeps > 0 ? 1 : 0;
+      State s = play_with_threads(m, p, sc, threads, relaxed_frames);
       EXPECT_GT(relaxed_frames, 10) << sweeps << " sweeps, " << threads << " threads";
-      return sim.state();
+      return s;
     };
     const State ref = run(1);
     const std::size_t n = ref.pos.size();
@@ -274,13 +282,10 @@ TEST(FramePipeline, ManyShortRelaxationsWithMoreThreadsThanCoresNeitherHangNorDi
   const Scenario sc = Scenario::paper_protocol(2.0f, 5, 2, 2000);
   const int saved = omp_get_max_threads();
   auto run = [&](int threads) {
-    omp_set_num_threads(threads);
-    Simulation sim(m, p);
-    ScenarioPlayer player(sc, sim);
     int relaxed_frames = 0;
-    while (!player.done()) relaxed_frames += player.step().relax_sweeps > 0 ? 1 : 0;
+    State s = play_with_threads(m, p, sc, threads, relaxed_frames);
     EXPECT_GT(relaxed_frames, 2000) << threads << " threads";
-    return sim.state();
+    return s;
   };
   const State ref = run(1);
   for (int threads : {2, 4}) {
