@@ -194,7 +194,9 @@ void register_bench(CLI::App& app) {
 
     // ---- print (Table 3 layout) ----
     const std::string kernels = last->backend().kernels();
-    const std::string kernels_note = kernels.empty() ? "" : " (" + kernels + " kernels)";
+    const int sim_threads = last->backend().threads();
+    std::string kernels_note = kernels.empty() ? "" : " (" + kernels + " kernels)";
+    if (sim_threads > 0) kernels_note += ", " + std::to_string(sim_threads) + (sim_threads == 1 ? " thread" : " threads");
     std::printf("hpcm bench: %s, %dx%dx%d = %lld elements, backend %s%s%s%s, %d frames per condition%s\n", source.c_str(),
                 model.dims.x, model.dims.y, model.dims.z, static_cast<long long>(n), backend_name(bk),
                 probe.available ? ": " : "", probe.available ? probe.device.c_str() : "", kernels_note.c_str(), o->frames,
@@ -283,6 +285,7 @@ void register_bench(CLI::App& app) {
     js["warmup_frames"] = o->warmup;
     js["speed_reductions"] = o->speeds;
     js["machine"] = {{"cpu", cpu_model()}, {"hardware_threads", std::thread::hardware_concurrency()}};
+    if (sim_threads > 0) js["simulation_threads"] = sim_threads;
     js["timing"] = bk == BackendKind::Cuda ? "CUDA events on the backend's stream" : "std::chrono::steady_clock";
     nlohmann::json conds = nlohmann::json::array();
     for (const auto& c : res) {

@@ -72,6 +72,9 @@ class Backend {
   /// The instruction set the backend's kernels use (CPU: "avx512", "avx2" or "sse2"; empty
   /// where that does not apply).
   virtual std::string kernels() const { return {}; }
+  /// Host threads the backend simulates on (CPU: its worker threads, from OMP_NUM_THREADS or
+  /// the hardware; 0 where that does not apply).
+  virtual int threads() const { return 0; }
 
   virtual void download(State& s) = 0;
   virtual void download_positions(std::vector<Vec3>& pos) = 0;

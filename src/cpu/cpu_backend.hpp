@@ -48,7 +48,7 @@ class CpuBackend final : public Backend {
   /// Forces the SIMD kernels ("sse2", "avx2", "avx512"; empty: the environment variable
   /// HPCM_CPU_KERNELS if set, else the best this CPU runs) from the next load() on.
   void force_kernels(const std::string& name) { forced_kernel_ = name; }
-  int threads() const { return pool_ ? pool_->threads() : 1; }
+  int threads() const override { return pool_ ? pool_->threads() : 1; }
   /// Bytes per element of the backend's arrays (the model's table and per-brick data excluded).
   static std::size_t bytes_per_element() { return Storage::bytes_per_element(); }
 

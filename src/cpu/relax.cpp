@@ -161,21 +161,23 @@ float Relaxation::phase(const RelaxContext& ctx, int p, int z, bool prefetch, In
   for (int by = 0; by < nb.y; ++by) {
     const Index row = static_cast<Index>(by) * nb.x;
     const int y1 = std::min((by + 1) * B, L.dims.y);
-    for (int bx = 0; bx < nb.x;) {
-      if (!cell_active(row + bx)) {
-        ++bx;
-        continue;
-      }
-      int end = bx + 1;
-      while (end < nb.x && cell_active(row + end)) ++end;
-      active_cells += end - bx;
-      for (int c = bx; c < end; ++c)  // several threads may mark one brick: atomic, relaxed
-        std::atomic_ref<std::uint8_t>(worked_[row + c + cells_ * (z / B)]).store(1, std::memory_order_relaxed);
-      // Cells [bx, end) of this brick row: their rows, this colour's half of each.
-      const int x0 = bx * B, x1 = std::min(end * B, L.dims.x);
-      mc = std::max(mc, kernel_(ctx, RelaxRun{colour, by * B, y1, z, x0, x1, ch + row + bx, x0 / 2, B / 2, prefetch}));
-      bx = end;
+    // One run from the first to the last active cell of this brick row. The inactive cells
+    // between them compute what they computed last time (nothing moves there: the schedule's
+    // argument above), so they change no result, and on a CT, where bone and quiet tissue
+    // split the rows into pieces, one long run keeps the vectors full and the calls few
+    // (measured faster than skipping them, BENCHMARKS.md).
+    int first = 0, last = nb.x - 1;
+    while (first < nb.x && !cell_active(row + first)) ++first;
+    if (first == nb.x) continue;
+    while (!cell_active(row + last)) --last;
+    for (int c = first; c <= last; ++c) {
+      if (!cell_active(row + c)) continue;
+      ++active_cells;  // several threads may mark one brick: atomic, relaxed
+      std::atomic_ref<std::uint8_t>(worked_[row + c + cells_ * (z / B)]).store(1, std::memory_order_relaxed);
     }
+    // Cells [first, last] of this brick row: their rows, this colour's half of each.
+    const int x0 = first * B, x1 = std::min((last + 1) * B, L.dims.x);
+    mc = std::max(mc, kernel_(ctx, RelaxRun{colour, by * B, y1, z, x0, x1, ch + row + first, x0 / 2, B / 2, prefetch}));
   }
   return mc;
 }
