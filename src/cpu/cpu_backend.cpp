@@ -107,28 +107,10 @@ PropagateStats CpuBackend::propagate() {
   return ps;
 }
 
-RelaxContext CpuBackend::relax_context() {
-  RelaxContext c;
-  c.lay = &st_.lay;
-  for (int a = 0; a < 3; ++a) {
-    c.p[a] = st_.p[a].data();
-    c.link_tau[a] = st_.link_tau[a].data();
-  }
-  c.weight = st_.weight.data();
-  c.flags = st_.flags.data();
-  c.time = st_.time.data();
-  c.model = m_;
-  c.wall = wall_;
-  c.threshold = p_.solver.relax_threshold;
-  c.threshold_sq = relax_threshold_sq_;
-  c.omega = p_.solver.relax_omega;
-  return c;
-}
-
 RelaxStats CpuBackend::relax(int sweeps) {
   if (!p_.solver.sleep) mark_all(hot_);  // every brick awake: the exact reference
-  const RelaxStats rs = relaxation_.run(relax_context(), sweeps, hot_, touched_, worked_, *pool_);
-  return rs;
+  const RelaxContext ctx = make_relax_context(st_, *m_, wall_, p_.solver, relax_threshold_sq_);
+  return relaxation_.run(ctx, sweeps, hot_, touched_, worked_, *pool_);
 }
 
 RestoreStats CpuBackend::restore_links() {

@@ -53,7 +53,6 @@ class CpuBackend final : public Backend {
   static std::size_t bytes_per_element() { return Storage::bytes_per_element(); }
 
  private:
-  RelaxContext relax_context();
   void mark_all(std::vector<std::uint8_t>& flags) { std::fill(flags.begin(), flags.end(), 1); }
 
   const Model* m_ = nullptr;

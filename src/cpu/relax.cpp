@@ -103,6 +103,25 @@ float squared_threshold(float threshold) {
   return s;
 }
 
+RelaxContext make_relax_context(Storage& st, const Model& m, const solver::Wall& wall, const SolverParams& s,
+                                float threshold_sq) {
+  RelaxContext c;
+  c.lay = &st.lay;
+  for (int a = 0; a < 3; ++a) {
+    c.p[a] = st.p[a].data();
+    c.link_tau[a] = st.link_tau[a].data();
+  }
+  c.weight = st.weight.data();
+  c.flags = st.flags.data();
+  c.time = st.time.data();
+  c.model = &m;
+  c.wall = wall;
+  c.threshold = s.relax_threshold;
+  c.threshold_sq = threshold_sq;
+  c.omega = s.relax_omega;
+  return c;
+}
+
 void Relaxation::init(const solver::BrickGrid& grid, RelaxRunKernel kernel) {
   grid_ = grid;
   kernel_ = kernel;

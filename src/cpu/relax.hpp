@@ -41,6 +41,11 @@ struct RelaxContext {
 /// threshold_sq for a threshold: the least s with sqrtf(s) >= threshold.
 float squared_threshold(float threshold);
 
+/// The context of a relaxation of the storage `st` of model `m` with these solver settings;
+/// `threshold_sq` is squared_threshold(s.relax_threshold) (callers compute it once).
+RelaxContext make_relax_context(Storage& st, const Model& m, const solver::Wall& wall, const SolverParams& s,
+                                float threshold_sq);
+
 /// One colour's elements with x0 <= x < x1 in rows y0 <= y < y1 of plane z (in each row, the
 /// half whose elements have that colour: x = 2j + h). An element j that moves marks brick
 /// column col_changed[(j - col_base) / col_width].
