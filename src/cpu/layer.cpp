@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <array>
 
+#include "cpu/layer_tasks.hpp"
+
 namespace hpcm::cpu {
 
 Index VelocityLayer::bricks_with_velocity() const {
@@ -41,24 +43,37 @@ void VelocityLayer::apply(Storage& st, const dynamics::LayerConstants& k, float 
   moved_now_.assign(static_cast<std::size_t>(grid_.count), 0);
   const int B = grid_.size;
   const Layout& L = st.lay;
-  pool.run(static_cast<std::int64_t>(runs_.size()), [&](std::int64_t item) {
-    const BrickRun& br = runs_[static_cast<std::size_t>(item)];
-    const Index row = static_cast<Index>(nb.x) * (br.by + static_cast<Index>(nb.y) * br.bz);
-    std::uint8_t* col_velocity = has_velocity_.data() + row + br.bx0;
-    std::uint8_t* col_moved = moved_now_.data() + row + br.bx0;
-    std::fill(col_velocity, col_velocity + (br.bx1 - br.bx0), 0);
-    float* col_speed = speed_.data() + row + br.bx0;
-    std::fill(col_speed, col_speed + (br.bx1 - br.bx0), 0.0f);
-    const std::uint8_t* col_asleep = asleep_.data() + row + br.bx0;
-    const int x0 = br.bx0 * B, x1 = std::min(br.bx1 * B, L.dims.x);
-    const int y1 = std::min((br.by + 1) * B, L.dims.y), z1 = std::min((br.bz + 1) * B, L.dims.z);
-    SpeedStats* local = speeds ? &partial_[static_cast<std::size_t>(item)] : nullptr;
-    for (int z = br.bz * B; z < z1; ++z)
-      for (int y = br.by * B; y < y1; ++y)
-        for (int h = 0; h < 2; ++h)  // elements x = 2j + h in [x0, x1), x0 even
-          kernel_(st, k, LayerRow{h, y, z, x0 / 2, (x1 - h + 1) / 2, col_asleep, col_velocity, col_moved, col_speed, x0 / 2, B / 2},
-                  local);
-    for (int bx = br.bx0; bx < br.bx1; ++bx) touched[row + bx] = 0;
+  // Tasks by layer of bricks (tasks_by_layer). The additions into each run's speed partial keep
+  // their order (z, y, h) whatever the tasks, and tasks share no brick column.
+  tasks_by_layer(runs_.size(), [&](std::size_t i) { return runs_[i].bz; }, min_layer_tasks(pool.threads()), tasks_);
+  pool.run(static_cast<std::int64_t>(tasks_.size()) - 1, [&](std::int64_t item) {
+    const std::size_t first = tasks_[static_cast<std::size_t>(item)], last = tasks_[static_cast<std::size_t>(item) + 1];
+    auto columns = [&](const BrickRun& br) { return static_cast<Index>(nb.x) * (br.by + static_cast<Index>(nb.y) * br.bz) + br.bx0; };
+    for (std::size_t i = first; i < last; ++i) {
+      const BrickRun& br = runs_[i];
+      const Index c0 = columns(br);
+      std::fill(has_velocity_.data() + c0, has_velocity_.data() + c0 + (br.bx1 - br.bx0), 0);
+      std::fill(speed_.data() + c0, speed_.data() + c0 + (br.bx1 - br.bx0), 0.0f);
+    }
+    const int bz = runs_[first].bz;
+    const int z1 = std::min((bz + 1) * B, L.dims.z);
+    for (int z = bz * B; z < z1; ++z)
+      for (std::size_t i = first; i < last; ++i) {
+        const BrickRun& br = runs_[i];
+        const Index c0 = columns(br);
+        const int x0 = br.bx0 * B, x1 = std::min(br.bx1 * B, L.dims.x);
+        const int y1 = std::min((br.by + 1) * B, L.dims.y);
+        SpeedStats* local = speeds ? &partial_[i] : nullptr;
+        for (int y = br.by * B; y < y1; ++y)
+          for (int h = 0; h < 2; ++h)  // elements x = 2j + h in [x0, x1), x0 even
+            kernel_(st, k, LayerRow{h, y, z, x0 / 2, (x1 - h + 1) / 2, asleep_.data() + c0, has_velocity_.data() + c0,
+                                    moved_now_.data() + c0, speed_.data() + c0, x0 / 2, B / 2},
+                    local);
+      }
+    for (std::size_t i = first; i < last; ++i) {
+      const Index c0 = columns(runs_[i]);
+      std::fill(touched.begin() + c0, touched.begin() + c0 + (runs_[i].bx1 - runs_[i].bx0), 0);
+    }
   });
   for (std::size_t b = 0; b < moved_now_.size(); ++b)
     if (moved_now_[b]) hot[b] = moved[b] = 1;

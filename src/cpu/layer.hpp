@@ -46,6 +46,7 @@ class VelocityLayer {
     int by, bz, bx0, bx1;  ///< bricks [bx0, bx1) of brick row (by, bz)
   };
   std::vector<BrickRun> runs_;
+  std::vector<std::size_t> tasks_;  ///< runs_ index where each task starts, and the end (tasks_by_layer)
   std::vector<std::uint8_t> moved_now_;
   std::vector<SpeedStats> partial_;
   Index last_bricks_ = 0;

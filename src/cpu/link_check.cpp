@@ -4,6 +4,7 @@
 #include <cstring>
 
 #include "core/link_box.hpp"
+#include "cpu/layer_tasks.hpp"
 #include "solver/restore.hpp"
 
 namespace hpcm::cpu {
@@ -27,7 +28,12 @@ void LinkCheck::run(const Storage& st, const solver::BrickGrid& grid, const std:
     }
     spans_.push_back({b, 1});
   }
-  const std::size_t items = spans_.size();
+  // Tasks by layer of bricks (tasks_by_layer). The results do not depend on the tasks: seeds
+  // are sorted below, and the statistics are counts and a maximum.
+  const Index layer_bricks = static_cast<Index>(grid.nb.x) * grid.nb.y;
+  tasks_by_layer(spans_.size(), [&](std::size_t i) { return spans_[i].first_brick / layer_bricks; }, min_layer_tasks(pool.threads()),
+                 tasks_);
+  const std::size_t items = tasks_.size() - 1;
   if (found_.size() < items) found_.resize(items);
   if (flagged_.size() < items) flagged_.resize(items);
   partial_.assign(items, RestoreStats{});
@@ -36,11 +42,6 @@ void LinkCheck::run(const Storage& st, const solver::BrickGrid& grid, const std:
     std::vector<int>& flagged = flagged_[static_cast<std::size_t>(item)];
     RestoreStats& ps = partial_[static_cast<std::size_t>(item)];
     out.clear();
-    const Span& span = spans_[static_cast<std::size_t>(item)];
-    Int3 lo, hi, lo_last, hi_last;
-    grid.range(span.first_brick, lo, hi);
-    grid.range(span.first_brick + span.count - 1, lo_last, hi_last);
-    hi.x = hi_last.x;
     // The exact check of one element (what solver::find_violations does).
     auto check_element = [&](int x, int y, int z) {
       const Index k = L.at(x, y, z);
@@ -67,19 +68,29 @@ void LinkCheck::run(const Storage& st, const solver::BrickGrid& grid, const std:
       }
       if (seed_e) out.push_back(e);
     };
-    for (int z = lo.z; z < hi.z; ++z)
-      for (int y = lo.y; y < hi.y; ++y)
-        for (int h = 0; h < 2; ++h) {
-          // Elements x = 2j + h in [lo.x, hi.x); the vector filter covers those whose +x
-          // neighbour exists (x + 1 < nx), the rest (the row's last element) are checked exactly.
-          const int j0 = lo.x / 2;  // lo.x is even
-          const int j1 = (hi.x - h + 1) / 2;
-          const int jx = std::min(j1, (d[0] - h) / 2);  // 2j + h + 1 < nx; jx >= j0 as lo.x < nx
-          flagged.clear();
-          filter_(st, wall, h, y, z, j0, jx, flagged);
-          for (int f : flagged) check_element(2 * f + h, y, z);
-          for (int j = jx; j < j1; ++j) check_element(2 * j + h, y, z);
-        }
+    const std::size_t first_span = tasks_[static_cast<std::size_t>(item)], end_span = tasks_[static_cast<std::size_t>(item) + 1];
+    Int3 layer_lo, layer_hi;
+    grid.range(spans_[first_span].first_brick, layer_lo, layer_hi);
+    for (int z = layer_lo.z; z < layer_hi.z; ++z)
+      for (std::size_t i = first_span; i < end_span; ++i) {
+        const Span& span = spans_[i];
+        Int3 lo, hi, lo_last, hi_last;
+        grid.range(span.first_brick, lo, hi);
+        grid.range(span.first_brick + span.count - 1, lo_last, hi_last);
+        hi.x = hi_last.x;
+        for (int y = lo.y; y < hi.y; ++y)
+          for (int h = 0; h < 2; ++h) {
+            // Elements x = 2j + h in [lo.x, hi.x); the vector filter covers those whose +x
+            // neighbour exists (x + 1 < nx), the rest (the row's last element) are checked exactly.
+            const int j0 = lo.x / 2;  // lo.x is even
+            const int j1 = (hi.x - h + 1) / 2;
+            const int jx = std::min(j1, (d[0] - h) / 2);  // 2j + h + 1 < nx; jx >= j0 as lo.x < nx
+            flagged.clear();
+            filter_(st, wall, h, y, z, j0, jx, flagged);
+            for (int f : flagged) check_element(2 * f + h, y, z);
+            for (int j = jx; j < j1; ++j) check_element(2 * j + h, y, z);
+          }
+      }
   });
   const std::size_t first = seeds.size();
   for (std::size_t item = 0; item < items; ++item) {

@@ -22,13 +22,14 @@ class LinkCheck {
 
  private:
   LinkRowKernel filter_ = nullptr;
-  /// Runs of bricks consecutive along x (same brick row): one work item each, so the vector
-  /// filter sees whole lattice rows instead of one brick's width.
+  /// Runs of bricks consecutive along x (same brick row), so that the vector filter sees whole
+  /// lattice rows instead of one brick's width.
   struct Span {
     Index first_brick;
     int count;
   };
   std::vector<Span> spans_;
+  std::vector<std::size_t> tasks_;  ///< spans_ index where each task starts, and the end (tasks_by_layer)
   std::vector<std::vector<Index>> found_;
   std::vector<std::vector<int>> flagged_;
   std::vector<RestoreStats> partial_;

@@ -109,7 +109,7 @@ float relax_span(const RelaxContext& c, const RelaxRun& r, int ya, int yb) {
         if constexpr (q == 1) missing = no_right;
         if constexpr (q < 2) w = missing ? zero : w;
         const V p0 = load<V>(px + nk), p1 = load<V>(py + nk), p2 = load<V>(pz + nk);
-        const V o0 = p0 - cur0, o1 = p1 - cur1, o2 = p2 - cur2;  // offsets from the element
+        const V o0 = sub_exact(p0, cur0), o1 = sub_exact(p1, cur1), o2 = sub_exact(p2, cur2);  // offsets from the element
         s0 = s0 + w * (a == 0 ? o0 + side : o0);
         s1 = s1 + w * (a == 1 ? o1 + side : o1);
         s2 = s2 + w * (a == 2 ? o2 + side : o2);
@@ -122,11 +122,11 @@ float relax_span(const RelaxContext& c, const RelaxRun& r, int ya, int yb) {
         auto bound = [&](V& lo, V& hi, V pn, bool axial) {
           V l, u;
           if (axial) {
-            l = plus_side ? pn + min_d : pn - max_d;
-            u = plus_side ? pn + max_d : pn - min_d;
+            l = plus_side ? add_exact(pn, min_d) : sub_exact(pn, max_d);
+            u = plus_side ? add_exact(pn, max_d) : sub_exact(pn, min_d);
           } else {
-            l = pn - shear;
-            u = pn + shear;
+            l = sub_exact(pn, shear);
+            u = add_exact(pn, shear);
           }
           if constexpr (q < 2) {
             l = missing ? minus_inf : l;

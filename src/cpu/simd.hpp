@@ -31,6 +31,18 @@ inline V vmin(V a, V b) {
   return a < b ? a : b;
 }
 
+/// a + b and a - b, one IEEE rounding each: the plain operators. The AVX-512 file specialises
+/// them as fused multiply-adds by one (a * 1 + b rounds once, to the same bits), which run on the
+/// multiply pipes while plain additions, maxima and minima queue on the add pipes (AMD Zen 4).
+template <class V>
+inline V add_exact(V a, V b) {
+  return a + b;
+}
+template <class V>
+inline V sub_exact(V a, V b) {
+  return a - b;
+}
+
 // Per instruction set (defined in simd_sse2.cpp / simd_avx2.cpp before the kernels):
 template <class V>
 using Mask = decltype(V{} < V{});

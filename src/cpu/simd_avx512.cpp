@@ -31,6 +31,17 @@ template <>
 inline void store_lanes<f16>(float* p, f16 v, unsigned bits) {
   _mm512_mask_storeu_ps(p, static_cast<__mmask16>(bits), reinterpret_cast<__m512>(v));
 }
+// a * 1 + b and b * -1 + a round once, exactly as a + b and a - b (signed zeros included).
+template <>
+inline f16 add_exact<f16>(f16 a, f16 b) {
+  return reinterpret_cast<f16>(
+      _mm512_fmadd_ps(reinterpret_cast<__m512>(a), _mm512_set1_ps(1.0f), reinterpret_cast<__m512>(b)));
+}
+template <>
+inline f16 sub_exact<f16>(f16 a, f16 b) {
+  return reinterpret_cast<f16>(
+      _mm512_fnmadd_ps(reinterpret_cast<__m512>(b), _mm512_set1_ps(1.0f), reinterpret_cast<__m512>(a)));
+}
 // The step-back test on mask registers. With d = t - cur and q != 0, d has the sign of q
 // (rounding is monotone and omega > 0), so "q > 0 ? d >= limit_factor * q : d <= limit_factor * q"
 // is |d| >= |limit_factor * q|, and a NaN fails both; the toward-zero step is a masked
