@@ -42,11 +42,11 @@ std::vector<Vec3> positions(const cpu::Storage& st, cpu::WorkerPool& pool) {
   return out;
 }
 
-}  // namespace
-
-TEST(RelaxationSchedule, SparseScheduleEqualsDenseRedBlackSweeps) {
+/// The sparse schedule against dense sweeps on a phantom of `dims` disturbed around `centres`.
+void check_schedule(Int3 dims, const std::vector<Int3>& centres) {
+  SCOPED_TRACE(std::to_string(dims.x) + "x" + std::to_string(dims.y) + "x" + std::to_string(dims.z));
   PhantomOptions o;
-  o.dims = {70, 44, 27};  // partial bricks on every axis, rows of 35 elements per colour
+  o.dims = dims;
   Params p;
   const Model m = build_model(make_phantom(o), p);
   // Disturbances at a few places along x, y and z: the active region is a set of islands, so
@@ -54,7 +54,6 @@ TEST(RelaxationSchedule, SparseScheduleEqualsDenseRedBlackSweeps) {
   State s = State::rest(m);
   std::mt19937 rng(11);
   std::uniform_real_distribution<float> U(-0.3f, 0.3f);
-  const Int3 centres[] = {{5, 9, 5}, {30, 10, 6}, {61, 12, 20}, {22, 35, 14}, {50, 30, 3}};
   for (const Int3 c : centres)
     for (int dz = -1; dz <= 1; ++dz)
       for (int dy = -1; dy <= 1; ++dy)
@@ -108,4 +107,14 @@ TEST(RelaxationSchedule, SparseScheduleEqualsDenseRedBlackSweeps) {
                                           << " threads: first differing element " << first_diff;
       }
   }
+}
+
+}  // namespace
+
+TEST(RelaxationSchedule, SparseScheduleEqualsDenseRedBlackSweeps) {
+  // Partial bricks on every axis, rows of 35 elements per colour.
+  check_schedule({70, 44, 27}, {{5, 9, 5}, {30, 10, 6}, {61, 12, 20}, {22, 35, 14}, {50, 30, 3}});
+  // An odd width: rows of 33 and 32 elements, the last brick column one element wide (x = 64,
+  // the even colour only), disturbed at both ends of the rows.
+  check_schedule({65, 41, 19}, {{1, 9, 5}, {63, 20, 10}, {30, 12, 16}, {63, 35, 3}});
 }
