@@ -48,10 +48,10 @@ void VelocityLayer::apply(Storage& st, const dynamics::LayerConstants& k, float 
   tasks_by_layer(runs_.size(), [&](std::size_t i) { return runs_[i].bz; }, min_layer_tasks(pool.threads()), tasks_);
   pool.run(static_cast<std::int64_t>(tasks_.size()) - 1, [&](std::int64_t item) {
     const std::size_t first = tasks_[static_cast<std::size_t>(item)], last = tasks_[static_cast<std::size_t>(item) + 1];
-    auto columns = [&](const BrickRun& br) { return static_cast<Index>(nb.x) * (br.by + static_cast<Index>(nb.y) * br.bz) + br.bx0; };
+    auto first_brick = [&](const BrickRun& br) { return static_cast<Index>(nb.x) * (br.by + static_cast<Index>(nb.y) * br.bz) + br.bx0; };
     for (std::size_t i = first; i < last; ++i) {
       const BrickRun& br = runs_[i];
-      const Index c0 = columns(br);
+      const Index c0 = first_brick(br);
       std::fill(has_velocity_.data() + c0, has_velocity_.data() + c0 + (br.bx1 - br.bx0), 0);
       std::fill(speed_.data() + c0, speed_.data() + c0 + (br.bx1 - br.bx0), 0.0f);
     }
@@ -60,7 +60,7 @@ void VelocityLayer::apply(Storage& st, const dynamics::LayerConstants& k, float 
     for (int z = bz * B; z < z1; ++z)
       for (std::size_t i = first; i < last; ++i) {
         const BrickRun& br = runs_[i];
-        const Index c0 = columns(br);
+        const Index c0 = first_brick(br);
         const int x0 = br.bx0 * B, x1 = std::min(br.bx1 * B, L.dims.x);
         const int y1 = std::min((br.by + 1) * B, L.dims.y);
         SpeedStats* local = speeds ? &partial_[i] : nullptr;
@@ -71,7 +71,7 @@ void VelocityLayer::apply(Storage& st, const dynamics::LayerConstants& k, float 
                     local);
       }
     for (std::size_t i = first; i < last; ++i) {
-      const Index c0 = columns(runs_[i]);
+      const Index c0 = first_brick(runs_[i]);
       std::fill(touched.begin() + c0, touched.begin() + c0 + (runs_[i].bx1 - runs_[i].bx0), 0);
     }
   });
