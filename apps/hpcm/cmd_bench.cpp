@@ -195,11 +195,11 @@ void register_bench(CLI::App& app) {
     // ---- print (Table 3 layout) ----
     const std::string kernels = last->backend().kernels();
     const int sim_threads = last->backend().threads();
-    std::string kernels_note = kernels.empty() ? "" : " (" + kernels + " kernels)";
-    if (sim_threads > 0) kernels_note += ", " + std::to_string(sim_threads) + (sim_threads == 1 ? " thread" : " threads");
+    std::string backend_note = kernels.empty() ? "" : " (" + kernels + " kernels)";
+    if (sim_threads > 0) backend_note += ", " + std::to_string(sim_threads) + (sim_threads == 1 ? " thread" : " threads");
     std::printf("hpcm bench: %s, %dx%dx%d = %lld elements, backend %s%s%s%s, %d frames per condition%s\n", source.c_str(),
                 model.dims.x, model.dims.y, model.dims.z, static_cast<long long>(n), backend_name(bk),
-                probe.available ? ": " : "", probe.available ? probe.device.c_str() : "", kernels_note.c_str(), o->frames,
+                probe.available ? ": " : "", probe.available ? probe.device.c_str() : "", backend_note.c_str(), o->frames,
                 o->speeds ? ", speed reductions on" : "");
     std::printf("Table 3: stage times per frame, median over frames (mean in brackets), ms\n");
     std::printf("%-18s %18s %18s %18s %18s %14s\n", "condition", "ChainMail", "Inertia", "Snapshot", "SimTotal", "elements/s");

@@ -14,22 +14,19 @@ namespace hpcm::cpu {
 /// `layer_of(i)`: the layer of piece i.
 template <class LayerOf>
 void tasks_by_layer(std::size_t count, LayerOf layer_of, std::size_t min_tasks, std::vector<std::size_t>& starts) {
-  starts.clear();
+  std::size_t layers = 0;
   for (std::size_t i = 0; i < count; ++i)
-    if (i == 0 || layer_of(i) != layer_of(i - 1)) starts.push_back(i);
-  const std::size_t layers = starts.size();
-  if (layers > 0 && layers < min_tasks) {
-    const std::size_t parts = (min_tasks + layers - 1) / layers;
-    std::vector<std::size_t> layer_start = starts;
-    layer_start.push_back(count);
-    starts.clear();
-    for (std::size_t l = 0; l < layers; ++l) {
-      const std::size_t begin = layer_start[l], n = layer_start[l + 1] - begin;
-      for (std::size_t p = 0; p < parts; ++p) {
-        const std::size_t s = begin + n * p / parts;
-        if (starts.empty() || s != starts.back()) starts.push_back(s);
-      }
+    if (i == 0 || layer_of(i) != layer_of(i - 1)) ++layers;
+  const std::size_t parts = layers > 0 && layers < min_tasks ? (min_tasks + layers - 1) / layers : 1;
+  starts.clear();
+  for (std::size_t begin = 0; begin < count;) {
+    std::size_t end = begin + 1;
+    while (end < count && layer_of(end) == layer_of(begin)) ++end;
+    for (std::size_t p = 0; p < parts; ++p) {  // consecutive parts, none empty
+      const std::size_t s = begin + (end - begin) * p / parts;
+      if (starts.empty() || s != starts.back()) starts.push_back(s);
     }
+    begin = end;
   }
   starts.push_back(count);
 }

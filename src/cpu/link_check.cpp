@@ -26,7 +26,13 @@ void LinkCheck::run(const Storage& st, const solver::BrickGrid& grid, const std:
         continue;
       }
     }
-    spans_.push_back({b, 1});
+    spans_.push_back({b, 1, {}, {}});
+  }
+  for (Span& span : spans_) {
+    Int3 lo_last, hi_last;
+    grid.range(span.first_brick, span.lo, span.hi);
+    grid.range(span.first_brick + span.count - 1, lo_last, hi_last);
+    span.hi.x = hi_last.x;
   }
   // Tasks by layer of bricks (tasks_by_layer). The results do not depend on the tasks: seeds
   // are sorted below, and the statistics are counts and a maximum.
@@ -69,15 +75,9 @@ void LinkCheck::run(const Storage& st, const solver::BrickGrid& grid, const std:
       if (seed_e) out.push_back(e);
     };
     const std::size_t first_span = tasks_[static_cast<std::size_t>(item)], end_span = tasks_[static_cast<std::size_t>(item) + 1];
-    Int3 layer_lo, layer_hi;
-    grid.range(spans_[first_span].first_brick, layer_lo, layer_hi);
-    for (int z = layer_lo.z; z < layer_hi.z; ++z)
+    for (int z = spans_[first_span].lo.z; z < spans_[first_span].hi.z; ++z)  // the task's layer
       for (std::size_t i = first_span; i < end_span; ++i) {
-        const Span& span = spans_[i];
-        Int3 lo, hi, lo_last, hi_last;
-        grid.range(span.first_brick, lo, hi);
-        grid.range(span.first_brick + span.count - 1, lo_last, hi_last);
-        hi.x = hi_last.x;
+        const Int3 lo = spans_[i].lo, hi = spans_[i].hi;
         for (int y = lo.y; y < hi.y; ++y)
           for (int h = 0; h < 2; ++h) {
             // Elements x = 2j + h in [lo.x, hi.x); the vector filter covers those whose +x

@@ -27,6 +27,7 @@ class LinkCheck {
   struct Span {
     Index first_brick;
     int count;
+    Int3 lo, hi;  ///< its elements: [lo, hi) on each axis
   };
   std::vector<Span> spans_;
   std::vector<std::size_t> tasks_;  ///< spans_ index where each task starts, and the end (tasks_by_layer)
