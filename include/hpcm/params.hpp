@@ -52,9 +52,10 @@ struct DynamicsParams {
   /// s_class = clamp(inverse_mass / max(inverse_mass), s_min, s_max) (SPEC §5.3).
   PerTissue response_scale() const;
   /// Largest inertia gain beta * rho_class * s_class with which the motion still settles under
-  /// this mode, for the relaxation over-relaxation `relax_omega` (measured; docs/parameters.md,
-  /// "Stability"). Infinite for mode none.
-  float stable_gain_limit(float relax_omega) const;
+  /// this mode, for a relaxation of `relax_sweeps` sweeps over-relaxed by `relax_omega`
+  /// (derived and measured; docs/parameters.md, "Stability"). Infinite for mode none and
+  /// without relaxation.
+  float stable_gain_limit(float relax_omega, int relax_sweeps) const;
   friend bool operator==(const DynamicsParams&, const DynamicsParams&) = default;
 };
 

@@ -94,42 +94,56 @@ PerTissue DynamicsParams::response_scale() const {
 }
 
 namespace {
-// Share of an element's displacement that one frame of ChainMail relaxation takes back, as it
-// acts on the velocity layer (k in docs/parameters.md, "Stability"): fitted to where the
-// measured motion stops settling (scripts/stability_sweep.sh, 32x32x24 phantom), rounded up.
-// It grows with the over-relaxation factor, steeply near 2.
-float relaxation_take_back(float omega) {
-  static const float w[] = {1.0f, 1.5f, 1.85f, 1.9f, 1.95f};
-  static const float k[] = {1.0f, 1.06f, 1.27f, 1.35f, 1.65f};
-  if (omega <= w[0]) return k[0];
-  for (int i = 1; i < 5; ++i)
-    if (omega <= w[i]) return k[i - 1] + (k[i] - k[i - 1]) * (omega - w[i - 1]) / (w[i] - w[i - 1]);
-  return k[4];
+// The largest share of an element's displacement that one frame of relaxation (K red-black
+// sweeps, over-relaxation omega) takes back (k in docs/parameters.md, "Stability"). The
+// lattice's 6-neighbour coupling is two-cyclic, so each eigenvalue l of one sweep solves
+// (l + omega - 1)^2 = l omega^2 mu^2 for an eigenvalue mu of the Jacobi step (Young's SOR
+// theory): real ones lie in (0, 1), the others have modulus |omega - 1| and K sweeps turn them
+// by K times their angle. Where that lands on the negative axis a frame takes back
+// 1 + |omega - 1|^K of the displacement: it throws the element past rest.
+float relaxation_take_back(float omega, int sweeps) {
+  if (sweeps <= 0) return 0.0f;  // no relaxation: nothing is taken back
+  return 1.0f + static_cast<float>(std::pow(std::abs(static_cast<double>(omega) - 1.0), sweeps));
 }
 }  // namespace
 
-float DynamicsParams::stable_gain_limit(float relax_omega) const {
+float DynamicsParams::stable_gain_limit(float relax_omega, int relax_sweeps) const {
   // Linearised frame map of one element: x' = (1 - k) x + g V', V' = d (V - s k x), with the
   // velocity decay d = alpha (simple) or 1 / (1 + b0) (viscoelastic, at rest). It is stable
   // while g s < (1 + alpha) (2 - k) / k (simple) or (1 + d) (2 - k) / (d k) (viscoelastic).
-  const float k = relaxation_take_back(relax_omega);
+  const float k = relaxation_take_back(relax_omega, relax_sweeps);
+  constexpr float kNoLimit = std::numeric_limits<float>::infinity();
+  if (k == 0.0f) return kNoLimit;
   switch (mode) {
-    case DampingMode::None: return std::numeric_limits<float>::infinity();
+    case DampingMode::None: return kNoLimit;
     case DampingMode::Simple: return (1.0f + alpha) * (2.0f - k) / k;
     case DampingMode::Viscoelastic: {
       const float d = 1.0f / (1.0f + b0);
       return (1.0f + d) * (2.0f - k) / (d * k);
     }
   }
-  return 0.0f;
+  return kNoLimit;
 }
+
+namespace {
+// " (to K or more)": the fewest relaxation sweeps that make the setting stable on their own
+// (the limit grows with the sweeps), or "" when no count up to 256 does.
+std::string sweeps_hint(const Params& p) {
+  const PerTissue s = p.dynamics.response_scale();
+  float worst = 0.0f;
+  for (int t = 0; t < kTissueCount; ++t) worst = std::max(worst, p.dynamics.beta * p.dynamics.rho[t] * s[t]);
+  for (int k = p.solver.relax_sweeps + 1; k <= 256; ++k)
+    if (worst <= p.dynamics.stable_gain_limit(p.solver.relax_omega, k) * 1.0001f) return " (to " + std::to_string(k) + " or more)";
+  return "";
+}
+}  // namespace
 
 void Params::validate() const {
   tissue.validate();
   material.validate();
   solver.validate();
   dynamics.validate();
-  const float limit = dynamics.stable_gain_limit(solver.relax_omega);
+  const float limit = dynamics.stable_gain_limit(solver.relax_omega, solver.relax_sweeps);
   const PerTissue s = dynamics.response_scale();
   for (int t = 0; t < kTissueCount; ++t) {
     const float gain = dynamics.beta * dynamics.rho[t] * s[t];
@@ -140,10 +154,11 @@ void Params::validate() const {
         << " of dynamics.mode = " << damping_mode_name(dynamics.mode)
         << (dynamics.mode == DampingMode::Simple ? " with dynamics.alpha = " : " with dynamics.b0 = ")
         << (dynamics.mode == DampingMode::Simple ? dynamics.alpha : dynamics.b0)
-        << " and solver.relax_omega = " << solver.relax_omega
+        << ", solver.relax_omega = " << solver.relax_omega << " and solver.relax_sweeps = " << solver.relax_sweeps
         << ": the motion would never settle; lower dynamics.beta or dynamics.rho." << tissue_name(t)
         << (dynamics.mode == DampingMode::Simple ? ", raise dynamics.alpha" : ", raise dynamics.b0")
-        << " or lower solver.relax_omega (stability rule, docs/parameters.md)";
+        << ", lower solver.relax_omega or raise solver.relax_sweeps" << sweeps_hint(*this)
+        << " (stability rule, docs/parameters.md)";
       throw Error(m.str());
     }
   }

@@ -101,7 +101,7 @@ def test_parameters_by_name_round_trip(tmp_path):
     path.write_text(p.to_toml())
     assert hpcm.Params.load(str(path)) == p
     q = p.copy()
-    q["solver.relax_sweeps"] = 4
+    q["solver.relax_sweeps"] = 12
     assert q != p and p["solver.relax_sweeps"] == 8
 
 
