@@ -36,6 +36,9 @@ struct KnownFailure {
   const char* check;
   const char* why;
 };
+constexpr const char* kTableFoam =
+    "the table's still foam core (-850 HU) counts as skin&fat and lowers that class's means by 7 %; without it "
+    "skin&fat leads in Peak and AUC (0.236 / 1.96 vs muscle&organ's 0.229 / 1.89)";
 constexpr KnownFailure kKnownFailures[] = {
     {PhantomVariant::ThinTissue, 48, "A_no_overshoot",
      "the tool moves only 0.02 cells; in the first frame after release over-relaxation carries the grab centre "
@@ -46,8 +49,8 @@ constexpr KnownFailure kKnownFailures[] = {
     {PhantomVariant::AirPockets, 48, "C_hierarchy_peak",
      "muscle&organ's Peak exceeds skin&fat's: the wall over the gas pocket moves with the skin; the margin is 4 % on "
      "the standard 48x48x32 phantom"},
-    {PhantomVariant::Table, 48, "C_hierarchy_peak", "muscle&organ's Peak exceeds skin&fat's with the body on the anchored table"},
-    {PhantomVariant::Table, 48, "C_hierarchy_auc", "muscle&organ's AUC exceeds skin&fat's with the body on the anchored table"},
+    {PhantomVariant::Table, 48, "C_hierarchy_peak", kTableFoam},
+    {PhantomVariant::Table, 48, "C_hierarchy_auc", kTableFoam},
 };
 const KnownFailure* known_failure(PhantomVariant v, int nx, const std::string& check) {
   for (const auto& k : kKnownFailures)

@@ -1,0 +1,87 @@
+// The paper-protocol checks on the real CTs beside the checkout (../shared/data), with the
+// default Params, as `hpcm experiment --input PATH --downsample F` runs them: the abdomen CT at
+// full and half resolution and the DICOM series at half resolution. Every check is asserted
+// except the measured failures listed below with their cause (docs/tuning.md, "Real CT at half
+// resolution"); a listed failure that starts to hold fails the test, so the list cannot go
+// stale. Skipped when the data is absent.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <ostream>
+#include <string>
+
+#include "hpcm/experiment.hpp"
+#include "hpcm/io.hpp"
+
+using namespace hpcm;
+
+namespace {
+
+struct CtCase {
+  const char* name;
+  const char* path;  ///< below ../shared/data
+  int downsample;
+};
+
+void PrintTo(const CtCase& c, std::ostream* os) { *os << c.name; }
+
+struct KnownFailure {
+  const char* ct;  ///< CtCase::name
+  const char* check;
+  const char* why;
+};
+constexpr KnownFailure kKnownFailures[] = {
+    {"abdomen_f2", "B_velocity_sign_changes",
+     "one real turn (0.17 cells past rest), then a two-frame alternation of about 0.02 cells, below the counted "
+     "swing (1 % of the 2.78-cell pull); all checks hold at full resolution"},
+};
+const KnownFailure* known_failure(const std::string& ct, const std::string& check) {
+  for (const auto& k : kKnownFailures)
+    if (ct == k.ct && check == k.check) return &k;
+  return nullptr;
+}
+
+class RealCtExperiment : public ::testing::TestWithParam<CtCase> {};
+
+}  // namespace
+
+TEST_P(RealCtExperiment, ChecksHoldWithDefaults) {
+  const CtCase c = GetParam();
+  const std::string path = std::string(HPCM_SHARED_DATA) + "/" + c.path;
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << "test data " << path << " is absent (../shared/data)";
+  io::InputOptions in_opt;
+  in_opt.downsample = c.downsample;
+  const io::Input in = io::load_input(path, in_opt);
+  const Params p;  // defaults, no per-dataset tuning
+  const Model m = build_model(in.lattice, p);
+  ExperimentOptions opt;
+  opt.settle_frames = 2000;
+  const auto t0 = std::chrono::steady_clock::now();
+  const ExperimentResult r = run_experiment(m, p, opt);
+  const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::printf("%s: %dx%dx%d, %.1f s\n", c.name, m.dims.x, m.dims.y, m.dims.z, secs);
+  ASSERT_EQ(r.conditions.size(), 3u);
+  int reported = 0;
+  for (const Check& k : r.checks) {
+    std::printf("  %-26s %s %-5s value %-12g threshold %g\n", k.name.c_str(), k.spec.c_str(), k.holds ? "holds" : "FAILS",
+                k.value, k.threshold);
+    ++reported;
+    if (const KnownFailure* f = known_failure(c.name, k.name)) {
+      std::printf("    known failure: %s\n", f->why);
+      EXPECT_FALSE(k.holds) << k.name << " now holds on " << c.name
+                            << ": remove it from kKnownFailures and from docs/tuning.md";
+      continue;
+    }
+    EXPECT_TRUE(k.holds) << c.name << " " << k.name << ": value " << k.value << ", threshold " << k.threshold << " ("
+                         << k.description << ")";
+  }
+  EXPECT_EQ(reported, 27) << "the paper protocol reports 27 checks";
+}
+
+INSTANTIATE_TEST_SUITE_P(SharedData, RealCtExperiment,
+                         ::testing::Values(CtCase{"abdomen_f1", "abdomen-ct/abdomen_ct.nii.gz", 1},
+                                           CtCase{"abdomen_f2", "abdomen-ct/abdomen_ct.nii.gz", 2},
+                                           CtCase{"dicom_f2", "abdomen-ct-dicom", 2}),
+                         [](const ::testing::TestParamInfo<CtCase>& info) { return std::string(info.param.name); });
