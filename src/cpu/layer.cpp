@@ -54,6 +54,7 @@ void VelocityLayer::apply(Storage& st, const dynamics::LayerConstants& k, float 
       const Index c0 = first_brick(br);
       std::fill(has_velocity_.data() + c0, has_velocity_.data() + c0 + (br.bx1 - br.bx0), 0);
       std::fill(speed_.data() + c0, speed_.data() + c0 + (br.bx1 - br.bx0), 0.0f);
+      std::fill(touched.begin() + c0, touched.begin() + c0 + (br.bx1 - br.bx0), 0);  // read above, before the pass
     }
     const int bz = runs_[first].bz;
     const int z1 = std::min((bz + 1) * B, L.dims.z);
@@ -70,10 +71,6 @@ void VelocityLayer::apply(Storage& st, const dynamics::LayerConstants& k, float 
                                     moved_now_.data() + c0, speed_.data() + c0, x0 / 2, B / 2},
                     local);
       }
-    for (std::size_t i = first; i < last; ++i) {
-      const Index c0 = first_brick(runs_[i]);
-      std::fill(touched.begin() + c0, touched.begin() + c0 + (runs_[i].bx1 - runs_[i].bx0), 0);
-    }
   });
   for (std::size_t b = 0; b < moved_now_.size(); ++b)
     if (moved_now_[b]) hot[b] = moved[b] = 1;
