@@ -1,5 +1,7 @@
 #include "cli_common.hpp"
 
+#include <nlohmann/json.hpp>
+
 #include <unistd.h>
 
 #include <cmath>
@@ -202,11 +204,30 @@ void write_text_file(const std::string& path, const std::string& text) {
     std::ofstream f(tmp, std::ios::binary);
     if (!f) throw Error(path + ": cannot open for writing");
     f << text;
-    if (!f) throw Error(path + ": write failed");
+    f.close();  // the last buffer is written here: a full disk shows up at close
+    if (!f) {
+      std::error_code ec;
+      std::filesystem::remove(tmp, ec);
+      throw Error(path + ": write failed (disk full?)");
+    }
   }
   std::error_code ec;
   std::filesystem::rename(tmp, path, ec);
   if (ec) throw Error(path + ": cannot rename temporary file (" + ec.message() + ")");
+}
+
+void write_json_file(const std::string& path, const nlohmann::json& doc) {
+  std::string text;
+  try {
+    text = doc.dump(2);
+  } catch (const nlohmann::json::type_error&) {  // invalid UTF-8 in a string
+    text = doc.dump(2, ' ', false, nlohmann::json::error_handler_t::replace);
+    std::fprintf(stderr,
+                 "hpcm: warning: %s: a text in it (such as a file name) is not valid UTF-8; it is written with U+FFFD "
+                 "in place of the bytes that are not\n",
+                 path.c_str());
+  }
+  write_text_file(path, text + "\n");
 }
 
 bool want_progress() {

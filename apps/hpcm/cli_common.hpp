@@ -2,6 +2,7 @@
 // Shared pieces of the hpcm subcommands: where the volume comes from, parameter loading,
 // output folders, progress.
 #include <CLI/CLI.hpp>
+#include <nlohmann/json_fwd.hpp>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -63,6 +64,9 @@ Params load_params_option(const std::string& path);
 void make_output_dir(const std::string& dir, const std::string& option);
 /// Writes text atomically (temp file + rename).
 void write_text_file(const std::string& path, const std::string& text);
+/// Writes a JSON document (indented) with write_text_file. Text that is not valid UTF-8 (a
+/// file name with other bytes) is written with U+FFFD in its place and a warning, never dropped.
+void write_json_file(const std::string& path, const nlohmann::json& doc);
 /// Throws hpcm::Error naming `what` when a value bound for an output file is NaN or infinite.
 void require_finite(double v, const std::string& what);
 

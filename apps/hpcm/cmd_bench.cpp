@@ -316,7 +316,7 @@ void register_bench(CLI::App& app) {
       js["bandwidth"] = "n/a (" + std::string(backend_name(bk)) + ")";
       js["device_bytes_per_element"] = "n/a (" + std::string(backend_name(bk)) + ")";
     }
-    write_text_file(dir + "/bench.json", js.dump(2) + "\n");
+    write_json_file(dir + "/bench.json", js);
     out.commit();
     const char* d = out.final_path().c_str();
     std::printf("wrote %s/bench.csv, %s/bench_frames.csv, %s/bench.json\n", d, d, d);

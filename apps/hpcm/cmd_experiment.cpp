@@ -206,7 +206,7 @@ void register_experiment(CLI::App& app) {
     write_text_file(dir + "/table2.csv", t2.str());
     write_text_file(dir + "/table3.csv", t3.str());
     write_text_file(dir + "/activity.csv", activity.str());
-    write_text_file(dir + "/summary.json", js.dump(2) + "\n");
+    write_json_file(dir + "/summary.json", js);
     out.keep_on_failure();
     if (!o->no_report) {
       // An argument vector, never a shell: no character of the paths can run a command.

@@ -130,13 +130,11 @@ void register_run(CLI::App& app) {
     if (o->export_every > 0 && o->export_dir.empty()) throw Error("--export-every needs --export DIR");
     if (o->strict && o->export_dir.empty()) throw Error("--strict needs --export DIR (it judges the exports)");
     check_memory_before_load(o->source, kRunBytesPerElement);
-    StagedDir out(o->out, "--out");
-    std::optional<StagedDir> export_dir;
+    RunOutputs out(o->out, o->export_dir);
     RunOptions ro = *o;
     if (!o->export_dir.empty()) {
-      export_dir.emplace(o->export_dir, "--export");
-      ro.export_dir = export_dir->path();
-      ro.export_shown = export_dir->final_path();
+      ro.export_dir = out.export_path();
+      ro.export_shown = out.export_shown();
     }
 
     const Volume v = load_volume(o->source);
@@ -150,7 +148,7 @@ void register_run(CLI::App& app) {
     }
     const int frames = o->frames.value_or(sc.frames);
     ExportSession exporter(ro, sim);
-    FramesCsv csv(out.path() + "/frames.csv");
+    FramesCsv csv(out.out_path() + "/frames.csv");
     out.keep_on_failure();
     StepOptions so;
     so.link_violation = !o->no_link_check;
@@ -177,20 +175,19 @@ void register_run(CLI::App& app) {
       csv.close();
       exporter.finish(frames);
     } catch (const Error& e) {
-      throw Error(std::string(e.what()) + "\n  the frames computed so far are in " + out.path() + "/frames.csv");
+      throw Error(std::string(e.what()) + "\n  the frames computed so far are in " + out.out_path() + "/frames.csv");
     }
-    if (export_dir) export_dir->commit();
     out.commit();
     std::printf("%d frames, %lld elements, %s, dynamics %s: wrote %s/frames.csv", frames,
                 static_cast<long long>(sim.model().size()), backend_name(bk), damping_mode_name(p.dynamics.mode),
-                out.final_path().c_str());
+                out.out_shown().c_str());
     if (so.link_violation) std::printf(" (max link violation %.3g)", worst);
     std::printf("\n");
     if (o->strict && !exporter.problems().empty()) {
-      std::string msg = "--strict: the exports in " + export_dir->final_path() +
+      std::string msg = "--strict: the exports in " + out.export_shown() +
                         " were written but must not be trusted as they are:";
       for (const std::string& p : exporter.problems()) msg += "\n  " + p;
-      msg += "\n  (figures per export in " + export_dir->final_path() + "/export.json)";
+      msg += "\n  (figures per export in " + out.export_shown() + "/export.json)";
       throw Error(msg);
     }
   });

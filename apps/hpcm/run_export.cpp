@@ -90,7 +90,7 @@ void ExportSession::write_frame(const std::string& tag, int frames_done, bool fi
   bool clean = true;
   for (const auto& e : sidecar_["exports"]) clean = clean && e["clean"].get<bool>();
   sidecar_["all_clean"] = clean;
-  write_text_file(o_.export_dir + "/export.json", sidecar_.dump(2) + "\n");
+  write_json_file(o_.export_dir + "/export.json", sidecar_);
 #endif
 }
 

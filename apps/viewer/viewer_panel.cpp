@@ -368,7 +368,8 @@ void Viewer::panel_parameter_file() {
       {
         std::ofstream f(tmp, std::ios::binary);
         f << text;
-        if (!f) throw Error(std::string("cannot write ") + params_path_);
+        f.close();
+        if (!f) throw Error(std::string("cannot write ") + params_path_ + " (disk full?)");
       }
       std::filesystem::rename(tmp, params_path_);
       message(std::string("saved ") + params_path_);

@@ -260,7 +260,8 @@ void Viewer::write_report(const std::string& path, int image_w, int image_h) con
   }
   std::ofstream f(path);
   f << r.str();
-  if (!f) throw Error("cannot write report " + path);
+  f.close();
+  if (!f) throw Error("cannot write report " + path + " (disk full?)");
 }
 
 }  // namespace hpcm::viewer

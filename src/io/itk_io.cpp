@@ -14,6 +14,7 @@
 #include <optional>
 #include <set>
 #include <sstream>
+#include <fcntl.h>
 #include <unistd.h>
 
 #include <gdcmReader.h>
@@ -655,6 +656,17 @@ class AtomicWrite {
     if (!tmpdir_.empty()) fs::remove_all(tmpdir_, ec);
   }
   std::string temp_path() const { return (tmpdir_ / target_.filename()).string(); }
+  /// Flushes every written file to the disk: a full disk or an I/O error that the writer did not
+  /// report (ITK's NIfTI and MetaImage writers ignore failed writes) is an error here.
+  void sync() const {
+    for (const auto& e : fs::directory_iterator(tmpdir_)) {
+      const int fd = ::open(e.path().c_str(), O_RDONLY);
+      const bool ok = fd >= 0 && ::fsync(fd) == 0;
+      const int err = errno;
+      if (fd >= 0) ::close(fd);
+      if (!ok) throw Error(target_.string() + ": write failed (" + std::strerror(err) + ")");
+    }
+  }
   void commit() {
     std::vector<fs::path> files;
     for (const auto& e : fs::directory_iterator(tmpdir_)) files.push_back(e.path());
@@ -672,6 +684,29 @@ class AtomicWrite {
   fs::path target_;
   fs::path tmpdir_;
 };
+
+// Reads a just-written file back and compares it with what was meant to be written, bit for
+// bit: a file cut short (disk full, a file size limit) whose writer still reported success is
+// an error, never a result.
+template <class TImage>
+void verify_written(TImage* img, const std::string& written, Format f, const std::string& path, const char* what) {
+  const std::string failed = path + ": write failed (disk full?): read back, the written file ";
+  auto reader = itk::ImageFileReader<TImage>::New();
+  reader->SetImageIO(make_io(f));
+  reader->SetFileName(written);
+  try {
+    reader->Update();
+  } catch (const itk::ExceptionObject& e) {
+    throw Error(failed + "is unreadable: " + one_line(e));
+  }
+  TImage* back = reader->GetOutput();
+  if (back->GetBufferedRegion().GetSize() != img->GetBufferedRegion().GetSize() ||
+      back->GetNumberOfComponentsPerPixel() != img->GetNumberOfComponentsPerPixel())
+    throw Error(failed + "has another size than " + std::string(what));
+  const std::size_t bytes = img->GetPixelContainer()->Size() * sizeof(*img->GetBufferPointer());
+  if (std::memcmp(back->GetBufferPointer(), img->GetBufferPointer(), bytes) != 0)
+    throw Error(failed + "differs from " + std::string(what) + " it was meant to hold");
+}
 
 template <class TImage>
 void write_image(TImage* img, const std::string& path, const std::vector<Format>& allowed, const char* what) {
@@ -693,6 +728,8 @@ void write_image(TImage* img, const std::string& path, const std::vector<Format>
   } catch (const itk::ExceptionObject& e) {
     throw Error(path + ": cannot write " + what + ": " + one_line(e));
   }
+  aw.sync();
+  verify_written(img, aw.temp_path(), f, path, what);
   aw.commit();
 }
 
@@ -884,8 +921,10 @@ void write_label_map(const Input& in, const Model& m, const std::string& path) {
     for (int t = 0; t < kTissueCount; ++t)
       out << t << ' ' << tissue_name(t) << ' ' << rgba[t][0] << ' ' << rgba[t][1] << ' ' << rgba[t][2] << ' '
           << rgba[t][3] << '\n';
-    if (!out) throw Error(ctbl + ": cannot write the colour table");
+    out.close();
+    if (!out) throw Error(ctbl + ": cannot write the colour table (disk full?)");
   }
+  aw.sync();
   aw.commit();
 }
 
