@@ -1,10 +1,12 @@
 #!/usr/bin/env bash
 # Builds hpcm (Release) and runs the whole test suite with CTest, then the guard rails of
 # hostile input: the libFuzzer harnesses (clang, CMake preset "fuzz", each a bounded run) and
-# the whole test suite again under ASan + UBSan (preset "asan"). HPCM_FUZZ=0 / HPCM_SANITIZE=0
-# leave those out (e.g. for a quick local run). Tests labelled `heavy` (minutes of simulation on
-# paper-protocol lattices) run in the Release suite only: under the sanitizers they would take
-# most of the CI budget and exercise no code the other tests do not.
+# the whole test suite again under ASan + UBSan (preset "asan"), and the tests of code that
+# several threads run under ThreadSanitizer (preset "tsan", tests labelled `threads`).
+# HPCM_FUZZ=0 / HPCM_SANITIZE=0 / HPCM_TSAN=0 leave those out (e.g. for a quick local run).
+# Tests labelled `heavy` (minutes of simulation on paper-protocol lattices) run in the Release
+# suite only: under the sanitizers they would take most of the CI budget and exercise no code
+# the other tests do not.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install-deps.sh
@@ -27,5 +29,11 @@ if [ "${HPCM_SANITIZE:-1}" != 0 ]; then
   cmake --preset asan
   cmake --build --preset asan -j "$JOBS"
   ctest --preset asan -j "$JOBS" -LE heavy
+fi
+if [ "${HPCM_TSAN:-1}" != 0 ]; then
+  stage "ThreadSanitizer build and threaded tests"
+  cmake --preset tsan
+  cmake --build --preset tsan -j "$JOBS"
+  ctest --preset tsan -j "$JOBS"
 fi
 stage "done"
