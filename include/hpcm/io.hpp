@@ -46,6 +46,12 @@ Volume read_volume_as_stored(const std::string& path, const ReadOptions& opt = {
 /// The same volume reoriented to LPS index order (to_lps_order of the above).
 Volume read_volume(const std::string& path, const ReadOptions& opt = {});
 
+/// Which header fields give the grid of a volume file, for `hpcm info` and export.json. NIfTI
+/// (nibabel's rule): "sform (sform_code 2)" when sform_code > 0, with "; the qform differs"
+/// when the qform is set and places the grid elsewhere; else "qform (qform_code 1)"; else
+/// "pixdim (qform_code and sform_code 0)". Other formats: "" (one geometry in the header).
+std::string nifti_geometry_source(const std::string& path);
+
 /// How the lattice's LPS index order lies on a grid stored in another index order: LPS axis p
 /// (0 = L, 1 = P, 2 = S) runs along stored axis `axis[p]`, backwards when `reversed[p]`.
 struct IndexOrder {
