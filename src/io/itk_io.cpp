@@ -282,6 +282,17 @@ std::string read_text_header(const std::string& path, bool nrrd) {
   return end == std::string::npos ? text : text.substr(0, end + 1);
 }
 
+// Bytes per stored NIfTI element, from the datatype code (bitpix when the code is unknown).
+double nifti_element_bytes(const detail::NiftiHeader& h) {
+  switch (h.datatype) {
+    case 2: case 256: return 1;              // uint8, int8
+    case 4: case 512: return 2;              // int16, uint16
+    case 8: case 16: case 768: return 4;     // int32, float32, uint32
+    case 64: case 1024: case 1280: return 8; // float64, int64, uint64
+    default: return double(h.bitpix) / 8.0;
+  }
+}
+
 // A compressed MetaImage data part: ITK trusts CompressedDataSize and leaves the rest of its
 // buffer uninitialised when the stream is shorter than DimSize x ElementType. hpcm inflates the
 // stream itself (output discarded) and needs the announced size to be the bytes present and
@@ -333,7 +344,7 @@ void check_file_before_itk(const std::string& path, Format f, itk::ImageIOBase& 
   // when scl_slope is set, twice the int16 data).
   double data_bytes = double(io.GetImageSizeInBytes());
   if (nifti) {
-    data_bytes = double(nifti->bitpix) / 8.0;
+    data_bytes = nifti_element_bytes(*nifti);
     for (int i = 1; i <= nifti->dim[0]; ++i) data_bytes *= double(nifti->dim[std::size_t(i)]);
   }
   const std::string name = detail::format_name(f);
@@ -406,7 +417,8 @@ void check_file_before_itk(const std::string& path, Format f, itk::ImageIOBase& 
       offset = in.tellg();
       if (offset < 0) throw Error(path + ": cannot find the data after the MetaImage header");
     } else {
-      data_path = detail::resolve_data_file(path, field.empty() ? "ElementDataFile" : field, data_file);
+      if (data_file.empty()) throw Error(path + ": MetaImage header without ElementDataFile");
+      data_path = detail::resolve_data_file(path, field, data_file);
     }
     const double have = double(fs::file_size(data_path)) - double(offset);
     if (compressed)
@@ -446,7 +458,14 @@ Volume read_file(const std::string& path, std::vector<std::string>& warnings) {
     const std::string data_file = detail::nrrd_data_file(text, &field);
     if (!field.empty()) detail::resolve_data_file(path, field, data_file);
   }
-  if (f == Format::Mha || f == Format::Mhd) detail::check_metaimage_header(path, read_text_header(path, false));
+  if (f == Format::Mha || f == Format::Mhd) {
+    const std::string text = read_text_header(path, false);
+    detail::check_metaimage_header(path, text);
+    std::string field;
+    const std::string data_file = detail::metaimage_data_file(text, &field);
+    if (!data_file.empty() && data_file != "LOCAL" && data_file != "Local" && data_file != "local")
+      detail::resolve_data_file(path, field, data_file);  // before ITK opens it
+  }
   std::optional<detail::NiftiHeader> nifti;
   if (f == Format::Nifti || f == Format::NiftiGz) nifti = read_nifti_header(path);
   if (!io->CanReadFile(path.c_str()))

@@ -649,6 +649,18 @@ TEST(HostileMetaImage, ShortRawDataIsAnError) {
   write_text(s / "v.mhd", head + "ElementDataFile = v.raw\n");
   write_text(s / "v.raw", short_data(63));
   expect_parts([&] { io::read_volume(s / "v.mhd"); }, {s / "v.mhd", "truncated", "126 bytes", "128"});
+  // NRRD: ITK (teem) reports short raw and gzip data itself.
+  const std::string nrrd = "NRRD0004\ntype: short\ndimension: 3\nsizes: 4 4 4\nendian: little\nspacings: 2 2 2\n";
+  write_text(s / "v.nrrd", nrrd + "encoding: raw\n\n" + short_data(50));
+  expect_parts([&] { io::read_volume(s / "v.nrrd"); }, {s / "v.nrrd", "truncated or corrupt NRRD file"});
+  gzFile gz = gzopen((s / "g.gz").c_str(), "wb");
+  const std::string part = short_data(50);
+  gzwrite(gz, part.data(), unsigned(part.size()));
+  gzclose(gz);
+  std::ifstream in(s / "g.gz", std::ios::binary);
+  const std::string packed((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  write_text(s / "g.nrrd", nrrd + "encoding: gzip\n\n" + packed);
+  expect_parts([&] { io::read_volume(s / "g.nrrd"); }, {s / "g.nrrd", "truncated or corrupt NRRD file"});
 }
 
 TEST(HostileDataFile, OnlyRegularFilesBesideOrBelowTheHeader) {
