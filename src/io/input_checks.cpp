@@ -489,13 +489,22 @@ std::string nrrd_data_file(const std::string& text, std::string* field) {
   return "";
 }
 
+namespace {
+std::string file_kind(const std::filesystem::file_status& st) {
+  namespace fs = std::filesystem;
+  if (fs::is_fifo(st)) return "a FIFO";
+  if (fs::is_character_file(st) || fs::is_block_file(st)) return "a device";
+  if (fs::is_directory(st)) return "a folder";
+  return "a socket or other special file";
+}
+}  // namespace
+
 std::string resolve_data_file(const std::string& header, const std::string& field, const std::string& entry) {
   namespace fs = std::filesystem;
   const std::string sep = lower(field) == "elementdatafile" ? " = " : ": ";
-  const std::string named = header + ": data file " + field + sep + (entry.size() > 200 ? entry.substr(0, 197) + "..." : entry);
+  const std::string named = header + ": " + field + sep + (entry.size() > 200 ? entry.substr(0, 197) + "..." : entry);
   // hpcm reads one data file: no lists (LIST) and no numbered patterns ("slice%03d.raw 1 40 1").
-  if (entry.empty() || lower(entry).rfind("list", 0) == 0 || entry.find('%') != std::string::npos ||
-      entry.find_first_of(" \t") != std::string::npos)
+  if (entry.empty() || lower(entry).rfind("list", 0) == 0 || entry.find('%') != std::string::npos)
     throw Error(named + " is not a single file name; hpcm reads one data file per header");
   std::error_code ec;
   const fs::path dir = fs::absolute(fs::path(header), ec).parent_path();
@@ -503,10 +512,10 @@ std::string resolve_data_file(const std::string& header, const std::string& fiel
   const fs::file_status st = fs::status(p, ec);  // follows symbolic links; never opens the file
   if (!fs::exists(st)) throw Error(named + " is missing (no such file: " + p.string() + ")");
   if (!fs::is_regular_file(st))
-    throw Error(named + " is not a regular file (" + (fs::is_fifo(st) ? "a FIFO" : fs::is_character_file(st) || fs::is_block_file(st) ? "a device" : fs::is_directory(st) ? "a folder" : "a special file") +
-                "); hpcm reads volume data only from regular files");
-  const fs::path real = fs::canonical(p, ec), real_dir = fs::canonical(dir, ec);
-  if (ec) throw Error(named + ": cannot resolve the path: " + ec.message());
+    throw Error(named + " is not a regular file (" + file_kind(st) + "); hpcm reads volume data only from regular files");
+  std::error_code ec_file, ec_dir;
+  const fs::path real = fs::canonical(p, ec_file), real_dir = fs::canonical(dir, ec_dir);
+  if (ec_file || ec_dir) throw Error(named + ": cannot resolve the path: " + (ec_file ? ec_file : ec_dir).message());
   auto r = real.begin();
   for (auto d = real_dir.begin(); d != real_dir.end(); ++d, ++r)
     if (r == real.end() || *r != *d)
