@@ -40,8 +40,11 @@ struct ReadOptions {
 /// normal) with the file's geometry (ITK conventions: LPS physical space). Throws
 /// hpcm::Error with a message naming the path on any failure: one line, then (only when a
 /// library printed something while reading) that library output as indented detail lines.
-/// Rejected: non-finite voxels, spacing that is zero, negative or not finite, HU outside
-/// [-32768, 65535], and DICOM series whose slices are not one evenly spaced stack (docs/io.md).
+/// Rejected: non-finite voxels, spacing outside [0.001, 1000] mm, origins beyond 1e5 mm, HU
+/// outside [-32768, 65535], implausible NIfTI scaling or qform/sform fields, MetaImage data that
+/// does not match its header, data files outside the header's folder or not regular files, and
+/// DICOM series whose slices are not one evenly spaced stack or disagree on their rescale tags
+/// (docs/io.md, "What is refused, and why"). NIfTI geometry follows nibabel's affine rule.
 Volume read_volume_as_stored(const std::string& path, const ReadOptions& opt = {});
 /// The same volume reoriented to LPS index order (to_lps_order of the above).
 Volume read_volume(const std::string& path, const ReadOptions& opt = {});

@@ -610,8 +610,6 @@ DicomDirectory scan_dicom_dir(const std::string& dir) {
   return out;
 }
 
-// "#2 UID (CT, 20 slices 512x512, 'description')": the number is what --series '#2' takes
-// (the only way to choose a series whose SeriesInstanceUID is empty).
 // --series: a SeriesInstanceUID, or '#N' for the N-th series as listed (1-based).
 std::optional<std::size_t> find_series(const std::vector<DicomSeriesInfo>& info, const std::string& wanted) {
   if (wanted.size() > 1 && wanted[0] == '#' && wanted.find_first_not_of("0123456789", 1) == std::string::npos &&
@@ -625,6 +623,8 @@ std::optional<std::size_t> find_series(const std::vector<DicomSeriesInfo>& info,
   return std::nullopt;
 }
 
+// "#2 UID (CT, 20 slices 512x512, 'description')": the number is what --series '#2' takes
+// (the only way to choose a series whose SeriesInstanceUID is empty).
 std::string series_line(const DicomSeriesInfo& s, std::size_t index) {
   std::string t = "#" + std::to_string(index + 1) + " " + (s.uid.empty() ? std::string("<empty SeriesInstanceUID>") : s.uid) +
                   " (" + (s.modality.empty() ? "?" : s.modality) + ", " + std::to_string(s.files) + " slices " +
