@@ -183,7 +183,13 @@ std::array<double, 12> nifti_affine(const NiftiHeader& h, NiftiAffine which) {
   if (which == NiftiAffine::Sform) return h.srow;
   std::array<double, 12> m{};
   if (which == NiftiAffine::Pixdim) {
-    for (int a = 0; a < 3; ++a) m[std::size_t(5 * a)] = h.pixdim[std::size_t(a + 1)];
+    // nibabel's fallback (shape_zoom_affine): Analyze's x flip, the grid centred on the origin.
+    for (int a = 0; a < 3; ++a) {
+      const double zoom = (a == 0 ? -1.0 : 1.0) * (h.dim[0] > a ? h.pixdim[std::size_t(a + 1)] : 1.0);
+      const double n = h.dim[0] > a ? double(h.dim[std::size_t(a + 1)]) : 1.0;
+      m[std::size_t(5 * a)] = zoom;
+      m[std::size_t(4 * a + 3)] = -(n - 1) / 2 * zoom;
+    }
     return m;
   }
   // The NIfTI-1 quaternion (nifti_quatern_to_mat44): rotation R, then the qfac flip of k.

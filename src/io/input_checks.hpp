@@ -52,8 +52,9 @@ struct NiftiHeader {
 };
 
 /// Which NIfTI affine gives the grid, by nibabel's rule (`get_best_affine`): the sform when
-/// sform_code > 0, else the qform when qform_code > 0, else pixdim alone (NIfTI method 1:
-/// diag(pixdim), origin 0, as ITK does; nibabel's fallback centres the grid instead).
+/// sform_code > 0, else the qform when qform_code > 0, else pixdim alone as nibabel reads it
+/// (`get_base_affine`: diag(-pixdim1, pixdim2, pixdim3), the grid centred on the origin; ITK
+/// would put voxel 0 at the origin with y running the other way).
 enum class NiftiAffine { Sform, Qform, Pixdim };
 NiftiAffine nifti_affine_used(const NiftiHeader& h);
 /// The 3x4 index -> RAS mm matrix (row-major) of the qform, the sform or pixdim alone.

@@ -467,7 +467,11 @@ Volume read_file(const std::string& path, std::vector<std::string>& warnings) {
       detail::resolve_data_file(path, field, data_file);  // before ITK opens it
   }
   std::optional<detail::NiftiHeader> nifti;
-  if (f == Format::Nifti || f == Format::NiftiGz) nifti = read_nifti_header(path);
+  std::optional<detail::Geometry> nifti_grid;  // nibabel's affine; a sheared one is refused here
+  if (f == Format::Nifti || f == Format::NiftiGz) {
+    nifti = read_nifti_header(path);
+    nifti_grid = detail::nifti_geometry(path, *nifti);
+  }
   if (!io->CanReadFile(path.c_str()))
     throw Error(path + ": not a readable " + name + " file (corrupt or truncated header)");
   try {
@@ -489,7 +493,6 @@ Volume read_file(const std::string& path, std::vector<std::string>& warnings) {
   if (!nifti) return finish(path, reader->GetOutput(), warnings);
   // NIfTI: the grid from the affine nibabel uses (ITK chooses between qform and sform by its
   // own rules), and a note when the other one disagrees.
-  const detail::Geometry g = detail::nifti_geometry(path, *nifti);
   const std::string source = detail::nifti_geometry_source(*nifti);
   if (source.find("differs") != std::string::npos) {
     const double mm = detail::nifti_affine_distance(*nifti, detail::nifti_affine(*nifti, detail::NiftiAffine::Sform),
@@ -500,7 +503,7 @@ Volume read_file(const std::string& path, std::vector<std::string>& warnings) {
                        std::to_string(nifti->qform_code) + ") differ (a corner voxel " + buf +
                        " mm apart); hpcm uses the sform, as nibabel does");
   }
-  return finish(path, reader->GetOutput()->GetBufferPointer(), g, warnings);
+  return finish(path, reader->GetOutput()->GetBufferPointer(), *nifti_grid, warnings);
 }
 
 // ---- DICOM series ----------------------------------------------------------------------------

@@ -751,6 +751,31 @@ TEST(HostileNiftiGeometry, GeometrySourceIsReported) {
   EXPECT_EQ(io::nifti_geometry_source(s / "both.nrrd"), "");
 }
 
+TEST(HostileNiftiGeometry, WithoutQformAndSformTheGridIsNibabels) {
+  // nibabel's get_base_affine: RAS diag(-2, 2, 2), centred: voxel 0 at RAS (3, -3, -3) for 4^3.
+  Scratch s;
+  write_nifti(s / "p.nii", NiftiSpec{});
+  const Volume v = io::read_volume_as_stored(s / "p.nii");
+  EXPECT_NEAR(v.origin[0], -3, 1e-9);  // LPS
+  EXPECT_NEAR(v.origin[1], 3, 1e-9);
+  EXPECT_NEAR(v.origin[2], -3, 1e-9);
+  EXPECT_NEAR(v.direction[0], 1, 1e-12);
+  EXPECT_NEAR(v.direction[4], -1, 1e-12);
+  EXPECT_NEAR(v.direction[8], 1, 1e-12);
+}
+
+TEST(HostileNiftiGeometry, ShearedSformIsAnError) {
+  Scratch s;
+  NiftiSpec spec;
+  spec.sform_code = 1;
+  spec.srow[1] = 0.5f;  // column 1 leans towards x
+  write_nifti(s / "shear.nii", spec);
+  expect_parts([&] { io::read_volume(s / "shear.nii"); }, {s / "shear.nii", "sform columns 0 and 1 are not orthogonal"});
+  spec.qform_code = 1;  // ITK would fall back to this qform silently
+  write_nifti(s / "shear_q.nii", spec);
+  expect_parts([&] { io::read_volume(s / "shear_q.nii"); }, {s / "shear_q.nii", "sform columns 0 and 1 are not orthogonal"});
+}
+
 TEST(HostileDicomStack, RescaleTagsInEverySliceOrNone) {
   auto v = axial_stack(6, 2);
   for (auto& sl : v) sl.intercept_text = "-1024", sl.slope_text = "1";

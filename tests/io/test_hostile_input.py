@@ -94,7 +94,7 @@ def oblique_affines():
     return sform, qform
 
 
-@pytest.mark.parametrize("codes", [(2, 1), (0, 1), (1, 0)])
+@pytest.mark.parametrize("codes", [(2, 1), (0, 1), (1, 0), (0, 0)])
 def test_geometry_follows_nibabel_affine(tmp_path, codes):
     sform_code, qform_code = codes
     sform, qform = oblique_affines()
@@ -109,7 +109,7 @@ def test_geometry_follows_nibabel_affine(tmp_path, codes):
     assert r.returncode == 0, r.stderr
     affine, _, lines = info_values(r.stdout)
     assert np.allclose(affine, expected, atol=1e-4), f"hpcm\n{affine}\nnibabel\n{expected}"
-    used = "sform" if sform_code > 0 else "qform"
+    used = "sform" if sform_code > 0 else "qform" if qform_code > 0 else "pixdim"
     assert lines["affine"].startswith(used), r.stdout
     if sform_code > 0 and qform_code > 0:
         assert "sform" in r.stderr and "qform" in r.stderr, r.stderr  # the note that they differ
