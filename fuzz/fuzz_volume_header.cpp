@@ -42,6 +42,9 @@ void dicom_stack(const std::uint8_t* data, std::size_t size) {
     s.columns = r.i8();
     s.frames = r.i8();
     s.instance = r.i8();
+    const int rescale = r.i8();
+    if (rescale & 1) s.intercept_text = "-1024";
+    if (rescale & 2) s.slope_text = "1";
     slices.push_back(s);
   }
   plan_dicom_stack("fuzz", slices, (count & 1) != 0);
@@ -54,7 +57,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   ++data, --size;
   try {
     switch (which) {
-      case 0: check_nifti_header("fuzz.nii", data, size); break;
+      case 0: {  // an accepted header must also give a grid (or an hpcm::Error)
+        const NiftiHeader h = check_nifti_header("fuzz.nii", data, size);
+        nifti_geometry_source(h);
+        nifti_geometry("fuzz.nii", h);
+        break;
+      }
       case 1: check_metaimage_header("fuzz.mha", std::string(reinterpret_cast<const char*>(data), size)); break;
       case 2: check_nrrd_header("fuzz.nrrd", std::string(reinterpret_cast<const char*>(data), size)); break;
       case 3: {

@@ -87,7 +87,7 @@ void add_volume_options(CLI::App* cmd, VolumeSource& src) {
   in->excludes(variant);
   add_int_option(cmd, "--downsample", src.downsample, 1, 4096, "Integer down-sampling factor per axis (block mean of HU)");
   cmd->add_option("--roi", src.roi, "Crop x0,y0,z0,x1,y1,z1 in voxels of the input (upper bounds exclusive)");
-  cmd->add_option("--series", src.series, "DICOM series instance UID (directories with several series)");
+  cmd->add_option("--series", src.series, "DICOM series in a directory with several: its SeriesInstanceUID, or '#N' as listed (also for an empty UID)");
   cmd->add_option("--dicom-duplicates", src.dicom_duplicates,
                   "DICOM slices at the same position: error (default) | first (keep the lowest InstanceNumber)")
       ->check(CLI::IsMember({"error", "first"}));

@@ -59,19 +59,28 @@ void register_info(CLI::App& app) {
       std::error_code ec;
       if (std::filesystem::is_directory(src.input, ec)) {
 #if defined(HPCM_WITH_ITK)
-        std::string uid = src.series;
         const auto series = io::list_dicom_series(src.input);
-        for (const auto& s : series)
-          if (uid.empty() && s.modality == "CT") uid = s.uid;
+        // The series read: the one --series names (a UID or '#N' as listed), else the only CT one.
+        std::size_t read = series.size();
+        for (std::size_t i = 0; i < series.size(); ++i)
+          if (src.series.empty() ? (read == series.size() && series[i].modality == "CT")
+                                 : (src.series == series[i].uid || src.series == "#" + std::to_string(i + 1)))
+            read = i;
         std::printf("%-11s%s (DICOM directory, %zu series)\n", "input", src.input.c_str(), series.size());
-        for (const auto& s : series)
-          std::printf("%-11s%s%s: %s, %d slices of %dx%d%s%s\n", "series",
-                      s.uid.empty() ? "<empty SeriesInstanceUID>" : s.uid.c_str(), s.uid == uid ? " [read]" : "",
+        for (std::size_t i = 0; i < series.size(); ++i) {
+          const auto& s = series[i];
+          std::printf("%-11s#%zu %s%s: %s, %d slices of %dx%d%s%s\n", "series", i + 1,
+                      s.uid.empty() ? "<empty SeriesInstanceUID>" : s.uid.c_str(), i == read ? " [read]" : "",
                       s.modality.empty() ? "?" : s.modality.c_str(), s.files, s.columns, s.rows,
                       s.description.empty() ? "" : ", ", s.description.c_str());
+        }
 #endif
       } else {
         std::printf("%-11s%s\n", "input", src.input.c_str());
+#if defined(HPCM_WITH_ITK)
+        // NIfTI: which of sform, qform and pixdim gave the grid (nibabel's rule).
+        if (const std::string g = io::nifti_geometry_source(src.input); !g.empty()) std::printf("%-11s%s\n", "affine", g.c_str());
+#endif
       }
     } else {
       std::printf("%-11sphantom %s (variant %s, seed %llu)\n", "input", src.phantom.c_str(), src.phantom_variant.c_str(),

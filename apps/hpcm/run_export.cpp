@@ -109,6 +109,8 @@ ExportSession::ExportSession(const RunOptions& o, Simulation& sim) : o_(o), sim_
   sidecar_["roi"] = {{"lo", {input_.roi.lo.x, input_.roi.lo.y, input_.roi.lo.z}},
                      {"hi", {input_.roi.hi.x, input_.roi.hi.y, input_.roi.hi.z}}};
   sidecar_["downsample"] = input_.downsample;
+  // Which header fields gave the input's grid (NIfTI: sform, qform or pixdim, nibabel's rule).
+  if (const std::string g = io::nifti_geometry_source(o_.source.input); !g.empty()) sidecar_["input_geometry"] = g;
   sidecar_["conventions"] =
       "shape, spacing, origin and direction are the file's own (ITK): LPS millimetres, direction row-major with "
       "column a the direction of index axis a; frame is the frames.csv row whose end positions were exported";

@@ -40,11 +40,20 @@ struct ReadOptions {
 /// normal) with the file's geometry (ITK conventions: LPS physical space). Throws
 /// hpcm::Error with a message naming the path on any failure: one line, then (only when a
 /// library printed something while reading) that library output as indented detail lines.
-/// Rejected: non-finite voxels, spacing that is zero, negative or not finite, HU outside
-/// [-32768, 65535], and DICOM series whose slices are not one evenly spaced stack (docs/io.md).
+/// Rejected: non-finite voxels, spacing outside [0.001, 1000] mm, origins beyond 1e5 mm, HU
+/// outside [-32768, 65535], implausible NIfTI scaling or qform/sform fields, MetaImage data that
+/// does not match its header, data files outside the header's folder or not regular files, and
+/// DICOM series whose slices are not one evenly spaced stack or disagree on their rescale tags
+/// (docs/io.md, "What is refused, and why"). NIfTI geometry follows nibabel's affine rule.
 Volume read_volume_as_stored(const std::string& path, const ReadOptions& opt = {});
 /// The same volume reoriented to LPS index order (to_lps_order of the above).
 Volume read_volume(const std::string& path, const ReadOptions& opt = {});
+
+/// Which header fields give the grid of a volume file, for `hpcm info` and export.json. NIfTI
+/// (nibabel's rule): "sform (sform_code 2)" when sform_code > 0, with "; the qform differs"
+/// when the qform is set and places the grid elsewhere; else "qform (qform_code 1)"; else
+/// "pixdim (qform_code and sform_code 0)". Other formats: "" (one geometry in the header).
+std::string nifti_geometry_source(const std::string& path);
 
 /// How the lattice's LPS index order lies on a grid stored in another index order: LPS axis p
 /// (0 = L, 1 = P, 2 = S) runs along stored axis `axis[p]`, backwards when `reversed[p]`.

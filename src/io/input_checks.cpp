@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <sstream>
 
 #include "hpcm/types.hpp"
@@ -34,6 +35,12 @@ T read_as(const unsigned char* p, bool swapped) {
 }
 
 }  // namespace
+
+void check_spacing_value(const std::string& path, const std::string& field, double v) {
+  if (!std::isfinite(v) || !(v >= kMinSpacingMm && v <= kMaxSpacingMm))
+    throw Error(path + ": voxel spacing " + field + " = " + num(v) + " mm is outside the plausible range [" +
+                num(kMinSpacingMm) + ", " + num(kMaxSpacingMm) + "] mm");
+}
 
 // ---- NIfTI ----------------------------------------------------------------------------------
 
@@ -81,33 +88,60 @@ NiftiHeader check_nifti_header(const std::string& path, const unsigned char* b, 
     if (h.dim[i] < 1) bad("dim[" + std::to_string(i) + "] = " + std::to_string(h.dim[i]) + " must be >= 1");
   // pixdim[1..3] are the voxel spacing; the NIfTI library would turn 0, negative or NaN into 1.
   static const char* axis_name[4] = {"", "x", "y", "z"};
-  for (int i = 1; i <= 3 && i <= h.dim[0]; ++i)
+  for (int i = 1; i <= 3 && i <= h.dim[0]; ++i) {
     if (!std::isfinite(h.pixdim[i]) || !(h.pixdim[i] > 0))
       throw Error(path + ": voxel spacing pixdim[" + std::to_string(i) + "] (" + axis_name[i] + ") = " + num(h.pixdim[i]) +
                   " is not a positive number; hpcm does not invent a spacing");
+    check_spacing_value(path, "pixdim[" + std::to_string(i) + "] (" + axis_name[i] + ")", h.pixdim[i]);
+  }
   if (!std::isfinite(h.vox_offset) || h.vox_offset < 0) bad("vox_offset = " + num(h.vox_offset) + " is not a valid offset");
   // NaN or 0 scl_slope means "no scaling" in NIfTI (nibabel writes NaN); a used slope needs a
-  // finite intercept.
-  if (std::isfinite(h.scl_slope) && h.scl_slope != 0 && !std::isfinite(h.scl_inter))
-    bad("scl_inter = " + num(h.scl_inter) + " is not finite while scl_slope = " + num(h.scl_slope) + " scales the data");
+  // finite intercept and a plausible size (ITK ignores |slope| < 2.2e-16, nibabel applies it).
   if (std::isinf(h.scl_slope)) bad("scl_slope is infinite");
+  if (std::isfinite(h.scl_slope) && h.scl_slope != 0) {
+    if (!std::isfinite(h.scl_inter))
+      bad("scl_inter = " + num(h.scl_inter) + " is not finite while scl_slope = " + num(h.scl_slope) + " scales the data");
+    if (!(std::fabs(h.scl_slope) >= kMinSlope && std::fabs(h.scl_slope) <= kMaxSlope))
+      bad("scl_slope = " + num(h.scl_slope) + " is outside the plausible magnitudes [" + num(kMinSlope) + ", " +
+          num(kMaxSlope) + "] (0 or NaN: no scaling); HU = slope * value + intercept would be meaningless");
+  }
+  auto real_at = [&](std::size_t at1, std::size_t at2, int i) {
+    return h.version == 1 ? double(read_as<float>(b + at1 + 4 * std::size_t(i), sw))
+                          : read_as<double>(b + at2 + 8 * std::size_t(i), sw);
+  };
+  for (int i = 0; i < 3; ++i) h.quatern[std::size_t(i)] = real_at(256, 352, i);
+  for (int i = 0; i < 3; ++i) h.qoffset[std::size_t(i)] = real_at(268, 376, i);
+  for (int i = 0; i < 12; ++i) h.srow[std::size_t(i)] = real_at(280, 400, i);
+  const std::string origin_range = " is outside [-" + num(kMaxOriginMm) + ", " + num(kMaxOriginMm) + "] mm";
   if (h.qform_code > 0) {
-    const std::size_t at = h.version == 1 ? 256 : 352, step = h.version == 1 ? 4 : 8;
-    for (int i = 0; i < 6; ++i) {
-      const double v = h.version == 1 ? read_as<float>(b + at + step * i, sw) : read_as<double>(b + at + step * i, sw);
-      if (!std::isfinite(v)) bad("qform (quatern_b..qoffset_z) holds a non-finite value");
+    static const char* qname[3] = {"quatern_b", "quatern_c", "quatern_d"};
+    static const char* oname[3] = {"qoffset_x", "qoffset_y", "qoffset_z"};
+    double norm2 = 0;
+    for (int i = 0; i < 3; ++i) {
+      const double q = h.quatern[std::size_t(i)], o = h.qoffset[std::size_t(i)];
+      if (!std::isfinite(q)) bad(std::string("qform ") + qname[i] + " = " + num(q) + " is non-finite");
+      if (!std::isfinite(o) || std::fabs(o) > kMaxOriginMm) bad(std::string("qform ") + oname[i] + " = " + num(o) + origin_range);
+      norm2 += q * q;
     }
+    // nibabel refuses b^2+c^2+d^2 > 1 (beyond float32 rounding); the NIfTI library rescales it.
+    if (norm2 > 1 + 3 * 1.2e-7)
+      bad("qform quatern_b^2 + quatern_c^2 + quatern_d^2 = " + num(norm2) + " is above 1: not a rotation");
   }
   if (h.sform_code > 0) {
-    const std::size_t at = h.version == 1 ? 280 : 400, step = h.version == 1 ? 4 : 8;
-    double m[12];
-    for (int i = 0; i < 12; ++i) {
-      m[i] = h.version == 1 ? read_as<float>(b + at + step * i, sw) : read_as<double>(b + at + step * i, sw);
-      if (!std::isfinite(m[i])) bad("sform (srow_x/y/z) holds a non-finite value");
-    }
+    static const char* row_name[3] = {"srow_x", "srow_y", "srow_z"};
+    const auto& m = h.srow;
+    for (int i = 0; i < 12; ++i)
+      if (!std::isfinite(m[std::size_t(i)]))
+        bad("sform " + std::string(row_name[i / 4]) + "[" + std::to_string(i % 4) + "] = " + num(m[std::size_t(i)]) +
+            " is non-finite");
+    for (int r = 0; r < 3; ++r)
+      if (std::fabs(m[std::size_t(4 * r + 3)]) > kMaxOriginMm)
+        bad("sform translation " + std::string(row_name[r]) + "[3] = " + num(m[std::size_t(4 * r + 3)]) + origin_range);
     for (int c = 0; c < 3; ++c) {
-      const double len = std::sqrt(m[c] * m[c] + m[4 + c] * m[4 + c] + m[8 + c] * m[8 + c]);
+      const double len = std::sqrt(m[std::size_t(c)] * m[std::size_t(c)] + m[std::size_t(4 + c)] * m[std::size_t(4 + c)] +
+                                   m[std::size_t(8 + c)] * m[std::size_t(8 + c)]);
       if (!(len > 0)) bad("sform column " + std::to_string(c) + " is zero: no voxel spacing along that axis");
+      check_spacing_value(path, "sform column " + std::to_string(c) + " length", len);
     }
   }
   return h;
@@ -137,6 +171,104 @@ void NonFiniteScan::feed(const unsigned char* data, std::size_t n) {
   for (; i + es <= n; i += es) element(data + i);
   std::memcpy(carry_, data + i, n - i);  // fewer than es bytes left
   carried_ = static_cast<int>(n - i);
+}
+
+NiftiAffine nifti_affine_used(const NiftiHeader& h) {
+  if (h.sform_code > 0) return NiftiAffine::Sform;
+  if (h.qform_code > 0) return NiftiAffine::Qform;
+  return NiftiAffine::Pixdim;
+}
+
+std::array<double, 12> nifti_affine(const NiftiHeader& h, NiftiAffine which) {
+  if (which == NiftiAffine::Sform) return h.srow;
+  std::array<double, 12> m{};
+  if (which == NiftiAffine::Pixdim) {
+    // nibabel's fallback (shape_zoom_affine): Analyze's x flip, the grid centred on the origin.
+    for (int a = 0; a < 3; ++a) {
+      const double zoom = (a == 0 ? -1.0 : 1.0) * (h.dim[0] > a ? h.pixdim[std::size_t(a + 1)] : 1.0);
+      const double n = h.dim[0] > a ? double(h.dim[std::size_t(a + 1)]) : 1.0;
+      m[std::size_t(5 * a)] = zoom;
+      m[std::size_t(4 * a + 3)] = -(n - 1) / 2 * zoom;
+    }
+    return m;
+  }
+  // The NIfTI-1 quaternion (nifti_quatern_to_mat44): rotation R, then the qfac flip of k.
+  const double b = h.quatern[0], c = h.quatern[1], d = h.quatern[2];
+  const double a = std::sqrt(std::max(0.0, 1.0 - (b * b + c * c + d * d)));
+  const double r[9] = {a * a + b * b - c * c - d * d, 2 * (b * c - a * d),         2 * (b * d + a * c),
+                       2 * (b * c + a * d),         a * a + c * c - b * b - d * d, 2 * (c * d - a * b),
+                       2 * (b * d - a * c),         2 * (c * d + a * b),         a * a + d * d - c * c - b * b};
+  const double qfac = h.pixdim[0] < 0 ? -1.0 : 1.0;
+  const double step[3] = {h.pixdim[1], h.pixdim[2], qfac * h.pixdim[3]};
+  for (int row = 0; row < 3; ++row) {
+    for (int col = 0; col < 3; ++col) m[std::size_t(4 * row + col)] = r[3 * row + col] * step[col];
+    m[std::size_t(4 * row + 3)] = h.qoffset[std::size_t(row)];
+  }
+  return m;
+}
+
+double nifti_affine_distance(const NiftiHeader& h, const std::array<double, 12>& a, const std::array<double, 12>& b) {
+  double worst = 0;
+  for (int corner = 0; corner < 8; ++corner) {
+    double ijk[3];
+    for (int k = 0; k < 3; ++k) ijk[k] = (corner >> k & 1) ? double(std::max<std::int64_t>(h.dim[std::size_t(k + 1)] - 1, 0)) : 0.0;
+    double d2 = 0;
+    for (int row = 0; row < 3; ++row) {
+      double pa = a[std::size_t(4 * row + 3)], pb = b[std::size_t(4 * row + 3)];
+      for (int k = 0; k < 3; ++k) {
+        pa += a[std::size_t(4 * row + k)] * ijk[k];
+        pb += b[std::size_t(4 * row + k)] * ijk[k];
+      }
+      d2 += (pa - pb) * (pa - pb);
+    }
+    worst = std::max(worst, std::sqrt(d2));
+  }
+  return worst;
+}
+
+Geometry nifti_geometry(const std::string& path, const NiftiHeader& h) {
+  const NiftiAffine which = nifti_affine_used(h);
+  const std::array<double, 12> m = nifti_affine(h, which);
+  Geometry g;
+  g.dims = {int(h.dim[1]), int(h.dim[2]), int(h.dim[3])};
+  // RAS -> LPS: the first two rows change sign.
+  static const double flip[3] = {-1, -1, 1};
+  std::array<double, 3> col[3];
+  for (int c = 0; c < 3; ++c) {
+    double len2 = 0;
+    for (int row = 0; row < 3; ++row) len2 += m[std::size_t(4 * row + c)] * m[std::size_t(4 * row + c)];
+    g.spacing[std::size_t(c)] = std::sqrt(len2);
+    for (int row = 0; row < 3; ++row) col[c][std::size_t(row)] = flip[row] * m[std::size_t(4 * row + c)] / g.spacing[std::size_t(c)];
+  }
+  for (int row = 0; row < 3; ++row) g.origin[std::size_t(row)] = flip[row] * m[std::size_t(4 * row + 3)];
+  // A sheared sform has no spacing/direction form: refuse rather than drop the shear.
+  static const char* pair[3] = {"0 and 1", "0 and 2", "1 and 2"};
+  const int ci[3][2] = {{0, 1}, {0, 2}, {1, 2}};
+  for (int p = 0; p < 3; ++p) {
+    const auto& u = col[ci[p][0]];
+    const auto& v = col[ci[p][1]];
+    const double cosine = u[0] * v[0] + u[1] * v[1] + u[2] * v[2];
+    if (std::fabs(cosine) > 1e-3)
+      throw Error(path + ": invalid NIfTI header: sform columns " + pair[p] + " are not orthogonal (cosine " + num(cosine) +
+                  "): a sheared grid, which hpcm cannot represent");
+  }
+  for (int row = 0; row < 3; ++row)
+    for (int c = 0; c < 3; ++c) g.direction[std::size_t(3 * row + c)] = col[c][std::size_t(row)];
+  return g;
+}
+
+std::string nifti_geometry_source(const NiftiHeader& h) {
+  switch (nifti_affine_used(h)) {
+    case NiftiAffine::Sform: {
+      std::string s = "sform (sform_code " + std::to_string(h.sform_code);
+      if (h.qform_code > 0 &&
+          nifti_affine_distance(h, nifti_affine(h, NiftiAffine::Sform), nifti_affine(h, NiftiAffine::Qform)) > 1e-3)
+        s += "; the qform differs";
+      return s + ")";
+    }
+    case NiftiAffine::Qform: return "qform (qform_code " + std::to_string(h.qform_code) + ")";
+    default: return "pixdim (qform_code and sform_code 0)";
+  }
 }
 
 // ---- text headers ---------------------------------------------------------------------------
@@ -206,6 +338,8 @@ void check_metaimage_header(const std::string& path, const std::string& text) {
         if (!std::isfinite(v[a]) || !(v[a] > 0))
           throw Error(path + ": voxel spacing " + name + "[" + std::to_string(a) + "] = " + num(v[a]) +
                       " is not a positive number; hpcm does not invent a spacing");
+        else
+          check_spacing_value(path, name + ("[" + std::to_string(a) + "]"), v[a]);
       if (key == "elementspacing" || !have_spacing) spacing = v;
       have_spacing = true;
     } else if (key == "offset" || key == "position" || key == "origin") {
@@ -302,9 +436,12 @@ void check_nrrd_header(const std::string& path, const std::string& text) {
   const auto spatial = [&](std::size_t count, std::size_t a) { return count >= 3 && a >= count - 3; };
   if (have_spacings)
     for (std::size_t a = 0; a < spacings.size(); ++a)
-      if (spatial(spacings.size(), a) && (!std::isfinite(spacings[a]) || !(spacings[a] > 0)))
-        throw Error(path + ": voxel spacing spacings[" + std::to_string(a) + "] = " + num(spacings[a]) +
-                    " is not a positive number; hpcm does not invent a spacing");
+      if (spatial(spacings.size(), a)) {
+        if (!std::isfinite(spacings[a]) || !(spacings[a] > 0))
+          throw Error(path + ": voxel spacing spacings[" + std::to_string(a) + "] = " + num(spacings[a]) +
+                      " is not a positive number; hpcm does not invent a spacing");
+        check_spacing_value(path, "spacings[" + std::to_string(a) + "]", spacings[a]);
+      }
   if (have_directions)
     for (std::size_t a = 0; a < directions.size(); ++a) {
       if (!spatial(directions.size(), a)) continue;
@@ -319,10 +456,78 @@ void check_nrrd_header(const std::string& path, const std::string& text) {
         throw Error(path + ": voxel spacing: space directions of axis " + std::to_string(a) +
                     (d.empty() ? std::string(" is none") : " is not a finite, non-zero vector") +
                     "; hpcm does not invent a spacing");
+      check_spacing_value(path, "space directions of axis " + std::to_string(a) + " (length)", std::sqrt(len2));
     }
   if (dimension > 0 && !sizes.empty() && static_cast<long long>(sizes.size()) != dimension)
     throw Error(path + ": NRRD header: sizes has " + std::to_string(sizes.size()) + " values for dimension " +
                 std::to_string(dimension));
+}
+
+// ---- data files of detached headers ---------------------------------------------------------
+
+std::string metaimage_data_file(const std::string& text, std::string* field) {
+  std::istringstream in(text);
+  std::string line;
+  while (std::getline(in, line)) {
+    const auto eq = line.find('=');
+    if (eq == std::string::npos) continue;
+    const std::string key = trim(line.substr(0, eq));
+    if (lower(key) != "elementdatafile") continue;
+    if (field) *field = key;
+    return trim(line.substr(eq + 1));
+  }
+  return "";
+}
+
+std::string nrrd_data_file(const std::string& text, std::string* field) {
+  std::istringstream in(text);
+  std::string line;
+  std::getline(in, line);  // magic
+  while (std::getline(in, line)) {
+    if (trim(line).empty()) break;
+    const auto colon = line.find(':');
+    if (line[0] == '#' || colon == std::string::npos || (colon + 1 < line.size() && line[colon + 1] == '=')) continue;
+    const std::string key = trim(line.substr(0, colon));
+    if (lower(key) != "data file" && lower(key) != "datafile") continue;
+    if (field) *field = key;
+    return trim(line.substr(colon + 1));
+  }
+  return "";
+}
+
+namespace {
+std::string file_kind(const std::filesystem::file_status& st) {
+  namespace fs = std::filesystem;
+  if (fs::is_fifo(st)) return "a FIFO";
+  if (fs::is_character_file(st) || fs::is_block_file(st)) return "a device";
+  if (fs::is_directory(st)) return "a folder";
+  return "a socket or other special file";
+}
+}  // namespace
+
+std::string resolve_data_file(const std::string& header, const std::string& field, const std::string& entry) {
+  namespace fs = std::filesystem;
+  const std::string sep = lower(field) == "elementdatafile" ? " = " : ": ";
+  const std::string named = header + ": " + field + sep + (entry.size() > 200 ? entry.substr(0, 197) + "..." : entry);
+  // hpcm reads one data file: no lists (LIST) and no numbered patterns ("slice%03d.raw 1 40 1").
+  if (entry.empty() || lower(entry).rfind("list", 0) == 0 || entry.find('%') != std::string::npos)
+    throw Error(named + " is not a single file name; hpcm reads one data file per header");
+  std::error_code ec;
+  const fs::path dir = fs::absolute(fs::path(header), ec).parent_path();
+  const fs::path p = fs::path(entry).is_absolute() ? fs::path(entry) : dir / entry;
+  const fs::file_status st = fs::status(p, ec);  // follows symbolic links; never opens the file
+  if (!fs::exists(st)) throw Error(named + " is missing (no such file: " + p.string() + ")");
+  if (!fs::is_regular_file(st))
+    throw Error(named + " is not a regular file (" + file_kind(st) + "); hpcm reads volume data only from regular files");
+  std::error_code ec_file, ec_dir;
+  const fs::path real = fs::canonical(p, ec_file), real_dir = fs::canonical(dir, ec_dir);
+  if (ec_file || ec_dir) throw Error(named + ": cannot resolve the path: " + (ec_file ? ec_file : ec_dir).message());
+  auto r = real.begin();
+  for (auto d = real_dir.begin(); d != real_dir.end(); ++d, ++r)
+    if (r == real.end() || *r != *d)
+      throw Error(named + " resolves to " + real.string() + ", outside the header's folder " + real_dir.string() +
+                  "; hpcm reads data files only beside the header or in its sub-folders");
+  return real.string();
 }
 
 // ---- DICOM ----------------------------------------------------------------------------------
@@ -359,6 +564,31 @@ std::string list_files(const std::vector<std::string>& files, std::size_t show =
   return out;
 }
 
+/// All slices or none carry RescaleIntercept / RescaleSlope: a slice without the intercept of
+/// its neighbours (-1024) would be read 1024 HU too bright. Their values may differ (legal
+/// DICOM): each slice's own are applied.
+void check_rescale_tags(const std::string& pre, const std::vector<DicomSlice>& slices) {
+  struct Tag {
+    const char* name;
+    std::string DicomSlice::*text;
+  };
+  for (const Tag& t : {Tag{"RescaleIntercept (0028,1052)", &DicomSlice::intercept_text},
+                       Tag{"RescaleSlope (0028,1053)", &DicomSlice::slope_text}}) {
+    std::vector<std::string> without;
+    const DicomSlice* with = nullptr;
+    for (const DicomSlice& s : slices) {
+      if ((s.*t.text).empty())
+        without.push_back(s.file);
+      else if (!with)
+        with = &s;
+    }
+    if (with && !without.empty())
+      throw Error(pre + list_files(without) + (without.size() == 1 ? " has no " : " have no ") + t.name + " while the other " +
+                  std::to_string(slices.size() - without.size()) + " slice(s) have one (" + with->file + ": '" +
+                  shorten(with->*t.text) + "'); its values would be read unscaled, hpcm needs every slice of a series to carry the tag");
+  }
+}
+
 }  // namespace
 
 DicomStack plan_dicom_stack(const std::string& dir, std::vector<DicomSlice> slices, bool keep_first_duplicate) {
@@ -381,8 +611,13 @@ DicomStack plan_dicom_stack(const std::string& dir, std::vector<DicomSlice> slic
       throw Error(pre + s.file + ": PixelSpacing (0028,0030) = " +
                   (s.spacing_text.empty() ? std::string("(missing)") : "'" + shorten(s.spacing_text) + "'") +
                   " is not a positive spacing; hpcm does not invent a spacing");
+    for (int i = 0; i < 2; ++i)
+      if (!(s.pixel_spacing[i] >= kMinSpacingMm && s.pixel_spacing[i] <= kMaxSpacingMm))
+        throw Error(pre + s.file + ": PixelSpacing (0028,0030) = '" + shorten(s.spacing_text) +
+                    "' is outside the plausible range [" + num(kMinSpacingMm) + ", " + num(kMaxSpacingMm) + "] mm");
     if (s.rows < 1 || s.columns < 1) throw Error(pre + s.file + " has no image matrix (Rows/Columns)");
   }
+  check_rescale_tags(pre, slices);
   // One orientation: unit, orthogonal row and column directions, the same in every slice.
   const DicomSlice& ref = slices.front();
   const auto& o = ref.orientation;

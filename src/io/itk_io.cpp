@@ -216,12 +216,21 @@ void check_hu(const std::string& path, const std::vector<float>& hu, std::vector
 
 // Image (file index order, LPS geometry g) -> checked Volume in the same order (as stored).
 Volume finish(const std::string& path, const float* data, const detail::Geometry& g, std::vector<std::string>& warnings) {
-  for (int a = 0; a < 3; ++a)
+  for (int a = 0; a < 3; ++a) {
     if (!(g.spacing[a] > 0) || !std::isfinite(g.spacing[a]))
       throw Error(path + ": voxel spacing " + std::to_string(g.spacing[a]) + " along axis " + std::to_string(a) +
                   " is not a positive number");
+    detail::check_spacing_value(path, "along axis " + std::to_string(a), g.spacing[a]);
+  }
   for (double x : g.origin)
     if (!std::isfinite(x)) throw Error(path + ": the volume origin is not finite");
+  for (int a = 0; a < 3; ++a)
+    if (std::fabs(g.origin[a]) > detail::kMaxOriginMm) {
+      char buf[160];
+      std::snprintf(buf, sizeof buf, ": the volume origin's coordinate %d = %.6g mm is outside [-%.6g, %.6g] mm", a,
+                    g.origin[a], detail::kMaxOriginMm, detail::kMaxOriginMm);
+      throw Error(path + buf);
+    }
   for (double x : g.direction)
     if (!std::isfinite(x)) throw Error(path + ": the direction matrix is not finite");
   const std::size_t n = std::size_t(g.dims.x) * g.dims.y * g.dims.z;
@@ -274,10 +283,71 @@ std::string read_text_header(const std::string& path, bool nrrd) {
   return end == std::string::npos ? text : text.substr(0, end + 1);
 }
 
+// Bytes per stored NIfTI element, from the datatype code (bitpix when the code is unknown).
+double nifti_element_bytes(const detail::NiftiHeader& h) {
+  switch (h.datatype) {
+    case 2: case 256: return 1;              // uint8, int8
+    case 4: case 512: return 2;              // int16, uint16
+    case 8: case 16: case 768: return 4;     // int32, float32, uint32
+    case 64: case 1024: case 1280: return 8; // float64, int64, uint64
+    default: return double(h.bitpix) / 8.0;
+  }
+}
+
+// A compressed MetaImage data part: ITK trusts CompressedDataSize and leaves the rest of its
+// buffer uninitialised when the stream is shorter than DimSize x ElementType. hpcm inflates the
+// stream itself (output discarded) and needs the announced size to be the bytes present and
+// the stream to end exactly at the voxel data's size.
+void check_metaimage_stream(const std::string& path, const std::string& data_path, std::streamoff offset, double have,
+                            double announced, double need) {
+  const std::string pre = path + ": MetaImage compressed data";
+  if (announced >= 0 && announced != have)
+    throw Error(pre + ": CompressedDataSize = " + std::to_string(static_cast<long long>(announced)) + " but the " +
+                (data_path == path ? "file holds " : "data file holds ") + std::to_string(static_cast<long long>(have)) +
+                " bytes of data; the header lies (truncated or corrupt file)");
+  std::ifstream in(data_path, std::ios::binary);
+  in.seekg(offset);
+  z_stream z{};
+  if (inflateInit2(&z, 15 + 32) != Z_OK) throw Error(pre + ": cannot start zlib");  // zlib or gzip header
+  std::vector<unsigned char> src(1 << 16), dst(1 << 16);
+  double out = 0;
+  int rc = Z_OK;
+  while (rc != Z_STREAM_END) {
+    in.read(reinterpret_cast<char*>(src.data()), std::streamsize(src.size()));
+    z.next_in = src.data();
+    z.avail_in = unsigned(in.gcount());
+    if (z.avail_in == 0) break;
+    do {
+      z.next_out = dst.data();
+      z.avail_out = unsigned(dst.size());
+      rc = inflate(&z, Z_NO_FLUSH);
+      out += double(dst.size() - z.avail_out);
+    } while (rc == Z_OK && z.avail_out == 0);
+    if (rc != Z_OK && rc != Z_STREAM_END && rc != Z_BUF_ERROR) break;
+    if (out > need) break;  // more than the voxels: no need to inflate the rest
+  }
+  const std::string zmsg = z.msg ? z.msg : "";
+  inflateEnd(&z);
+  if (rc != Z_OK && rc != Z_STREAM_END && rc != Z_BUF_ERROR)
+    throw Error(pre + " is corrupt (zlib: " + (zmsg.empty() ? std::to_string(rc) : zmsg) + ")");
+  if (rc != Z_STREAM_END && out <= need)
+    throw Error(pre + ": the compressed stream ends early, after " + std::to_string(static_cast<long long>(out)) +
+                " of " + std::to_string(static_cast<long long>(need)) + " bytes (truncated file)");
+  if (out != need)
+    throw Error(pre + " inflates to " + (out > need ? "more than " : "") + std::to_string(static_cast<long long>(out)) +
+                " bytes where DimSize x ElementType need " + std::to_string(static_cast<long long>(need)));
+}
+
 // A complete data part (NIfTI, MetaImage) and, for NIfTI, a checked header and finite float
 // voxels: what ITK and the NIfTI library would not report or would repair silently (NaN -> 0).
-void check_file_before_itk(const std::string& path, Format f, itk::ImageIOBase& io) {
-  const double data_bytes = double(io.GetImageSizeInBytes());
+void check_file_before_itk(const std::string& path, Format f, itk::ImageIOBase& io, const detail::NiftiHeader* nifti) {
+  // NIfTI: the stored bytes from the header (ITK reports the size of the scaled float image
+  // when scl_slope is set, twice the int16 data).
+  double data_bytes = double(io.GetImageSizeInBytes());
+  if (nifti) {
+    data_bytes = nifti_element_bytes(*nifti);
+    for (int i = 1; i <= nifti->dim[0]; ++i) data_bytes *= double(nifti->dim[std::size_t(i)]);
+  }
   const std::string name = detail::format_name(f);
   auto truncated = [&](double have, double need) {
     throw Error(path + ": truncated or corrupt " + name + " file: " + std::to_string(static_cast<long long>(have)) +
@@ -327,7 +397,7 @@ void check_file_before_itk(const std::string& path, Format f, itk::ImageIOBase& 
   }
   if (f == Format::Mha || f == Format::Mhd) {
     std::ifstream in(path, std::ios::binary);
-    std::string line, data_file;
+    std::string line, data_file, field;
     bool compressed = false;
     double compressed_size = -1;
     while (std::getline(in, line)) {
@@ -338,24 +408,35 @@ void check_file_before_itk(const std::string& path, Format f, itk::ImageIOBase& 
       if (key == "CompressedDataSize") compressed_size = std::atof(value.c_str());
       if (key == "ElementDataFile") {
         data_file = value;
+        field = key;
         break;
       }
     }
-    double have = -1;
+    std::string data_path = path;
+    std::streamoff offset = 0;
     if (data_file == "LOCAL" || data_file == "Local" || data_file == "local") {
-      const std::streamoff off = in.tellg();
-      if (off >= 0) have = double(fs::file_size(path)) - double(off);
-    } else if (!data_file.empty() && data_file.find('%') == std::string::npos && data_file.find(' ') == std::string::npos &&
-               data_file != "LIST") {
-      const fs::path p = fs::path(path).parent_path() / data_file;
-      std::error_code ec;
-      const auto sz = fs::file_size(p, ec);
-      if (ec) throw Error(path + ": its data file " + p.string() + " is missing");
-      have = double(sz);
+      offset = in.tellg();
+      if (offset < 0) throw Error(path + ": cannot find the data after the MetaImage header");
+    } else {
+      if (data_file.empty()) throw Error(path + ": MetaImage header without ElementDataFile");
+      data_path = detail::resolve_data_file(path, field, data_file);
     }
-    const double need = compressed ? compressed_size : data_bytes;
-    if (have >= 0 && need > 0 && have < need) truncated(have, need);
+    const double have = double(fs::file_size(data_path)) - double(offset);
+    if (compressed)
+      check_metaimage_stream(path, data_path, offset, have, compressed_size, data_bytes);
+    else if (have < data_bytes)
+      truncated(have, data_bytes);
   }
+}
+
+// The checked NIfTI header (before ITK sees the file: ITK spins on a 3e38 sform).
+detail::NiftiHeader read_nifti_header(const std::string& path) {
+  unsigned char head[540] = {};
+  gzFile gz = gzopen(path.c_str(), "rb");
+  if (!gz) throw Error(path + ": cannot open");
+  const int n = gzread(gz, head, sizeof head);
+  gzclose(gz);
+  return detail::check_nifti_header(path, head, n > 0 ? std::size_t(n) : 0);
 }
 
 Volume read_file(const std::string& path, std::vector<std::string>& warnings) {
@@ -371,15 +452,26 @@ Volume read_file(const std::string& path, std::vector<std::string>& warnings) {
   // hpcm's header checks run before ITK sees the file: ITK would take some of these values
   // (a negative spacing becomes positive, zero or NaN pixdim 1 mm), stop on others with a less
   // precise message, or abort the process (a NaN NIfTI sform).
-  if (f == Format::Nrrd || f == Format::Nhdr) detail::check_nrrd_header(path, read_text_header(path, true));
-  if (f == Format::Mha || f == Format::Mhd) detail::check_metaimage_header(path, read_text_header(path, false));
+  if (f == Format::Nrrd || f == Format::Nhdr) {
+    const std::string text = read_text_header(path, true);
+    detail::check_nrrd_header(path, text);
+    std::string field;
+    const std::string data_file = detail::nrrd_data_file(text, &field);
+    if (!field.empty()) detail::resolve_data_file(path, field, data_file);
+  }
+  if (f == Format::Mha || f == Format::Mhd) {
+    const std::string text = read_text_header(path, false);
+    detail::check_metaimage_header(path, text);
+    std::string field;
+    const std::string data_file = detail::metaimage_data_file(text, &field);
+    if (!data_file.empty() && data_file != "LOCAL" && data_file != "Local" && data_file != "local")
+      detail::resolve_data_file(path, field, data_file);  // before ITK opens it
+  }
+  std::optional<detail::NiftiHeader> nifti;
+  std::optional<detail::Geometry> nifti_grid;  // nibabel's affine; a sheared one is refused here
   if (f == Format::Nifti || f == Format::NiftiGz) {
-    unsigned char head[540] = {};
-    gzFile gz = gzopen(path.c_str(), "rb");
-    if (!gz) throw Error(path + ": cannot open");
-    const int n = gzread(gz, head, sizeof head);
-    gzclose(gz);
-    detail::check_nifti_header(path, head, n > 0 ? std::size_t(n) : 0);
+    nifti = read_nifti_header(path);
+    nifti_grid = detail::nifti_geometry(path, *nifti);
   }
   if (!io->CanReadFile(path.c_str()))
     throw Error(path + ": not a readable " + name + " file (corrupt or truncated header)");
@@ -390,7 +482,7 @@ Volume read_file(const std::string& path, std::vector<std::string>& warnings) {
     throw Error(path + ": corrupt " + name + " header: " + one_line(e));
   }
   check_header(path, *io);
-  check_file_before_itk(path, f, *io);
+  check_file_before_itk(path, f, *io, nifti ? &*nifti : nullptr);
   auto reader = itk::ImageFileReader<FloatImage>::New();
   reader->SetImageIO(io);
   reader->SetFileName(path);
@@ -399,7 +491,20 @@ Volume read_file(const std::string& path, std::vector<std::string>& warnings) {
   } catch (const itk::ExceptionObject& e) {
     throw Error(path + ": truncated or corrupt " + name + " file: " + one_line(e));
   }
-  return finish(path, reader->GetOutput(), warnings);
+  if (!nifti) return finish(path, reader->GetOutput(), warnings);
+  // NIfTI: the grid from the affine nibabel uses (ITK chooses between qform and sform by its
+  // own rules), and a note when the other one disagrees.
+  const std::string source = detail::nifti_geometry_source(*nifti);
+  if (source.find("differs") != std::string::npos) {
+    const double mm = detail::nifti_affine_distance(*nifti, detail::nifti_affine(*nifti, detail::NiftiAffine::Sform),
+                                                    detail::nifti_affine(*nifti, detail::NiftiAffine::Qform));
+    char buf[48];
+    std::snprintf(buf, sizeof buf, "%.6g", mm);
+    warnings.push_back(path + ": the sform (sform_code " + std::to_string(nifti->sform_code) + ") and the qform (qform_code " +
+                       std::to_string(nifti->qform_code) + ") differ (a corner voxel " + buf +
+                       " mm apart); hpcm uses the sform, as nibabel does");
+  }
+  return finish(path, reader->GetOutput()->GetBufferPointer(), *nifti_grid, warnings);
 }
 
 // ---- DICOM series ----------------------------------------------------------------------------
@@ -407,7 +512,7 @@ Volume read_file(const std::string& path, std::vector<std::string>& warnings) {
 const gdcm::Tag kSopClass(0x0008, 0x0016), kModality(0x0008, 0x0060), kSeriesDescription(0x0008, 0x103e),
     kSeriesUid(0x0020, 0x000e), kInstanceNumber(0x0020, 0x0013), kPosition(0x0020, 0x0032),
     kOrientation(0x0020, 0x0037), kFrames(0x0028, 0x0008), kRows(0x0028, 0x0010), kColumns(0x0028, 0x0011),
-    kPixelSpacing(0x0028, 0x0030);
+    kPixelSpacing(0x0028, 0x0030), kRescaleIntercept(0x0028, 0x1052), kRescaleSlope(0x0028, 0x1053);
 
 // One file of a DICOM directory as read from its tags.
 struct DicomFile {
@@ -424,8 +529,9 @@ DicomFile read_dicom_tags(const fs::path& path) {
   f.slice.file = f.name;
   gdcm::Reader reader;
   reader.SetFileName(path.c_str());
-  const std::set<gdcm::Tag> tags = {kSopClass,   kModality, kSeriesDescription, kSeriesUid, kInstanceNumber, kPosition,
-                                    kOrientation, kFrames,   kRows,              kColumns,   kPixelSpacing};
+  const std::set<gdcm::Tag> tags = {kSopClass,    kModality, kSeriesDescription, kSeriesUid,    kInstanceNumber,
+                                    kPosition,    kOrientation, kFrames,         kRows,         kColumns,
+                                    kPixelSpacing, kRescaleIntercept, kRescaleSlope};
   try {
     if (!reader.ReadSelectedTags(tags)) return f;
   } catch (...) {
@@ -451,6 +557,8 @@ DicomFile read_dicom_tags(const fs::path& path) {
   s.position_text = get(kPosition);
   s.orientation_text = get(kOrientation);
   s.spacing_text = get(kPixelSpacing);
+  s.intercept_text = get(kRescaleIntercept);
+  s.slope_text = get(kRescaleSlope);
   s.has_position = detail::parse_ds(s.position_text, s.position.data(), 3);
   s.has_orientation = detail::parse_ds(s.orientation_text, s.orientation.data(), 6);
   s.has_spacing = detail::parse_ds(s.spacing_text, s.pixel_spacing.data(), 2);
@@ -506,11 +614,56 @@ DicomDirectory scan_dicom_dir(const std::string& dir) {
   return out;
 }
 
-std::string series_line(const DicomSeriesInfo& s) {
-  std::string t = (s.uid.empty() ? std::string("<empty SeriesInstanceUID>") : s.uid) + " (" + (s.modality.empty() ? "?" : s.modality) + ", " + std::to_string(s.files) +
-                  " slices " + std::to_string(s.columns) + "x" + std::to_string(s.rows);
+// --series: a SeriesInstanceUID, or '#N' for the N-th series as listed (1-based).
+std::optional<std::size_t> find_series(const std::vector<DicomSeriesInfo>& info, const std::string& wanted) {
+  if (wanted.size() > 1 && wanted[0] == '#' && wanted.find_first_not_of("0123456789", 1) == std::string::npos &&
+      wanted.size() < 10) {
+    const std::size_t n = std::stoul(wanted.substr(1));
+    if (n >= 1 && n <= info.size()) return n - 1;
+    return std::nullopt;
+  }
+  for (std::size_t i = 0; i < info.size(); ++i)
+    if (info[i].uid == wanted) return i;
+  return std::nullopt;
+}
+
+// "#2 UID (CT, 20 slices 512x512, 'description')": the number is what --series '#2' takes
+// (the only way to choose a series whose SeriesInstanceUID is empty).
+std::string series_line(const DicomSeriesInfo& s, std::size_t index) {
+  std::string t = "#" + std::to_string(index + 1) + " " + (s.uid.empty() ? std::string("<empty SeriesInstanceUID>") : s.uid) +
+                  " (" + (s.modality.empty() ? "?" : s.modality) + ", " + std::to_string(s.files) + " slices " +
+                  std::to_string(s.columns) + "x" + std::to_string(s.rows);
   if (!s.description.empty()) t += ", '" + s.description + "'";
   return t + ")";
+}
+
+std::string series_list(const std::vector<DicomSeriesInfo>& info, const std::vector<std::size_t>& which) {
+  std::string list;
+  for (std::size_t i : which) list += (list.empty() ? "" : "; ") + series_line(info[i], i);
+  return list;
+}
+
+// The series --series names (a SeriesInstanceUID or '#N', N as listed), else the only CT series.
+std::size_t choose_series(const std::string& dir, const std::vector<DicomSeriesInfo>& info, const std::string& wanted) {
+  std::vector<std::size_t> all, ct;
+  for (std::size_t i = 0; i < info.size(); ++i) {
+    all.push_back(i);
+    if (info[i].modality == "CT") ct.push_back(i);
+  }
+  if (wanted.empty()) {
+    if (ct.empty()) throw Error(dir + ": no CT series in this DICOM directory (found: " + series_list(info, all) + ")");
+    if (ct.size() > 1)
+      throw Error(dir + ": " + std::to_string(ct.size()) + " CT series; choose one with --series UID or --series '#N' (N as listed): " +
+                  series_list(info, ct));
+    return ct.front();
+  }
+  const std::optional<std::size_t> pick = find_series(info, wanted);
+  if (!pick) throw Error(dir + ": no series with --series " + wanted + " (the directory has: " + series_list(info, all) + ")");
+  if (info[*pick].modality != "CT")
+    throw Error(dir + ": series " + wanted + " is " +
+                (info[*pick].modality.empty() ? std::string("of unknown modality") : info[*pick].modality) +
+                ", not CT; HU values need a CT series");
+  return *pick;
 }
 
 std::string list_names(const std::vector<std::string>& names) {
@@ -530,36 +683,7 @@ Volume read_dicom_dir(const std::string& dir, const ReadOptions& opt, std::vecto
                   ", or pass --dicom-skip-unreadable to ignore such files");
     warnings.push_back(dir + ": skipped (--dicom-skip-unreadable): " + what);
   }
-  std::vector<std::size_t> ct;
-  for (std::size_t i = 0; i < dd.info.size(); ++i)
-    if (dd.info[i].modality == "CT") ct.push_back(i);
-  std::size_t pick = 0;
-  if (!opt.series_uid.empty()) {
-    bool found = false;
-    for (std::size_t i = 0; i < dd.info.size() && !found; ++i)
-      if (dd.info[i].uid == opt.series_uid) pick = i, found = true;
-    if (!found) {
-      std::string list;
-      for (const auto& s : dd.info) list += (list.empty() ? "" : "; ") + series_line(s);
-      throw Error(dir + ": no series with --series " + opt.series_uid + " (the directory has: " + list + ")");
-    }
-    if (dd.info[pick].modality != "CT")
-      throw Error(dir + ": series " + opt.series_uid + " is " +
-                  (dd.info[pick].modality.empty() ? std::string("of unknown modality") : dd.info[pick].modality) +
-                  ", not CT; HU values need a CT series");
-  } else {
-    if (ct.empty()) {
-      std::string list;
-      for (const auto& s : dd.info) list += (list.empty() ? "" : "; ") + series_line(s);
-      throw Error(dir + ": no CT series in this DICOM directory (found: " + list + ")");
-    }
-    if (ct.size() > 1) {
-      std::string list;
-      for (std::size_t i : ct) list += (list.empty() ? "" : "; ") + series_line(dd.info[i]);
-      throw Error(dir + ": " + std::to_string(ct.size()) + " CT series; choose one with --series UID: " + list);
-    }
-    pick = ct.front();
-  }
+  const std::size_t pick = choose_series(dir, dd.info, opt.series_uid);
   // Geometry from the tags of every slice, checked by hpcm (not ITK's average spacing).
   const detail::DicomStack stack =
       detail::plan_dicom_stack(dir, dd.slices[pick], opt.dicom_duplicates == DicomDuplicates::First);
@@ -820,6 +944,14 @@ Volume read_volume_as_stored(const std::string& path, const ReadOptions& opt) {
       std::fprintf(stderr, "hpcm: warning: %s\n", w.c_str());
   }
   return v;
+}
+
+std::string nifti_geometry_source(const std::string& path) {
+  const Format f = detail::format_of(path);
+  if (f != Format::Nifti && f != Format::NiftiGz) return "";
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) return "";
+  return detail::nifti_geometry_source(read_nifti_header(path));
 }
 
 Volume read_volume(const std::string& path, const ReadOptions& opt) {

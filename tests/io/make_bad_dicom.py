@@ -106,6 +106,28 @@ def main():
         # One slice claims a different matrix size (its pixel data no longer matches).
         edit(mid_path, lambda ds: setattr(ds, "Columns", 256))
         print(f"{base}: Columns 256")
+    elif case == "no_intercept":
+        # One slice without RescaleIntercept (0028,1052): its pixels would be read 1024 HU too bright.
+        def drop(ds):
+            del ds.RescaleIntercept
+        edit(mid_path, drop)
+        print(f"{base}: RescaleIntercept removed")
+    elif case == "no_slope":
+        def drop(ds):
+            del ds.RescaleSlope
+        edit(mid_path, drop)
+        print(f"{base}: RescaleSlope removed")
+    elif case == "named_beside_empty":
+        # The series (empty SeriesInstanceUID) plus a copy of it under a real SeriesInstanceUID.
+        uid = generate_uid()
+        for p, _ in s:
+            copy = os.path.join(dest, "named_" + os.path.basename(p))
+            shutil.copy(p, copy)
+            def rename(ds):
+                ds.SeriesInstanceUID = uid
+                new_instance(ds)
+            edit(copy, rename)
+        print(uid)
     elif case == "stray_file":
         # A non-DICOM file beside the series (a note someone left there).
         with open(os.path.join(dest, "notes.txt"), "w") as f:

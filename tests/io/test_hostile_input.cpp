@@ -5,6 +5,7 @@
 // of ../shared/data/abdomen-ct-dicom; tag edits (positions, orientation, spacing) are in
 // tests/cli/hostile_cli.sh (pydicom).
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cmath>
@@ -63,10 +64,14 @@ void expect_error(const std::function<void()>& f, const std::string& path, const
 
 struct NiftiSpec {
   float pixdim[3] = {2, 2, 2};
+  float qfac = 1;  // pixdim[0]
   float scl_slope = 1, scl_inter = 0;
-  short sform_code = 0;
+  short qform_code = 0, sform_code = 0;
+  float quatern[3] = {0, 0, 0};  // quatern_b, c, d
+  float qoffset[3] = {0, 0, 0};
   float srow[12] = {2, 0, 0, 0, 0, 2, 0, 0, 0, 0, 2, 0};
   std::vector<float> voxels = std::vector<float>(4 * 4 * 4, 40.0f);
+  std::vector<std::int16_t> shorts;  // when not empty: int16 data (DT_INT16) instead of voxels
 };
 
 std::vector<unsigned char> nifti_bytes(const NiftiSpec& s) {
@@ -76,19 +81,28 @@ std::vector<unsigned char> nifti_bytes(const NiftiSpec& s) {
   put(0, &hs, 4);
   const std::int16_t dim[8] = {3, 4, 4, 4, 1, 1, 1, 1};
   put(40, dim, 16);
-  const std::int16_t dt[2] = {16, 32};
+  const bool int16 = !s.shorts.empty();
+  const std::int16_t dt[2] = {std::int16_t(int16 ? 4 : 16), std::int16_t(int16 ? 16 : 32)};
   put(70, dt, 4);
-  const float pix[8] = {1, s.pixdim[0], s.pixdim[1], s.pixdim[2], 1, 1, 1, 1};
+  const float pix[8] = {s.qfac, s.pixdim[0], s.pixdim[1], s.pixdim[2], 1, 1, 1, 1};
   put(76, pix, 32);
   const float vo = 352;
   put(108, &vo, 4);
   put(112, &s.scl_slope, 4);
   put(116, &s.scl_inter, 4);
+  put(252, &s.qform_code, 2);
   put(254, &s.sform_code, 2);
+  put(256, s.quatern, 12);
+  put(268, s.qoffset, 12);
   put(280, s.srow, 48);
   std::memcpy(b.data() + 344, "n+1", 4);
-  b.resize(352 + s.voxels.size() * sizeof(float));
-  std::memcpy(b.data() + 352, s.voxels.data(), s.voxels.size() * sizeof(float));
+  if (int16) {
+    b.resize(352 + s.shorts.size() * 2);
+    std::memcpy(b.data() + 352, s.shorts.data(), s.shorts.size() * 2);
+  } else {
+    b.resize(352 + s.voxels.size() * sizeof(float));
+    std::memcpy(b.data() + 352, s.voxels.data(), s.voxels.size() * sizeof(float));
+  }
   return b;
 }
 
@@ -483,4 +497,333 @@ TEST(HostileOutput, DestinationCheckedWithoutWriting) {
   expect_error([&] { io::check_output_path(s / "d.nii"); }, "d.nii", "is a folder");
   EXPECT_NO_THROW(io::check_output_path(s / "ok.nii.gz"));
   EXPECT_FALSE(fs::exists(s / "ok.nii.gz"));
+}
+
+// ---- issue 29: geometry bounds, scaled integers, compressed MetaImage, data-file paths ----------
+
+namespace {
+/// The message of the first line, for checks of several parts.
+std::string first_line(const std::function<void()>& f) {
+  const std::string msg = error_of(f);
+  return msg.substr(0, msg.find('\n'));
+}
+void expect_parts(const std::function<void()>& f, const std::vector<std::string>& parts) {
+  const std::string first = first_line(f);
+  for (const std::string& p : parts) EXPECT_NE(first.find(p), std::string::npos) << "'" << p << "' not in: " << first;
+}
+}  // namespace
+
+TEST(HostileNiftiGeometry, HugeSformTranslationIsAnErrorNamingTheValueNotAHang) {
+  Scratch s;
+  for (const float t : {3e38f, 1e6f, -2e5f}) {
+    NiftiSpec spec;
+    spec.sform_code = 1;
+    spec.srow[1 * 4 + 3] = t;  // srow_y[3]
+    write_nifti(s / "t.nii", spec);
+    char value[32];
+    std::snprintf(value, sizeof value, "%.6g", double(t));
+    expect_parts([&] { io::read_volume(s / "t.nii"); }, {s / "t.nii", "srow_y[3]", value, "[-100000, 100000] mm"});
+  }
+  NiftiSpec ok;  // within the bound
+  ok.sform_code = 1;
+  ok.srow[3] = -99999;
+  write_nifti(s / "ok.nii", ok);
+  EXPECT_NO_THROW(io::read_volume(s / "ok.nii"));
+}
+
+TEST(HostileNiftiGeometry, QformFieldsAreChecked) {
+  Scratch s;
+  NiftiSpec spec;
+  spec.qform_code = 1;
+  spec.qoffset[2] = 3e38f;
+  write_nifti(s / "q.nii", spec);
+  expect_parts([&] { io::read_volume(s / "q.nii"); }, {s / "q.nii", "qoffset_z", "3e+38", "[-100000, 100000] mm"});
+  spec.qoffset[2] = 0;
+  spec.quatern[0] = 0.9f;
+  spec.quatern[1] = 0.9f;  // b^2 + c^2 + d^2 = 1.62 > 1: not a rotation
+  write_nifti(s / "q.nii", spec);
+  expect_parts([&] { io::read_volume(s / "q.nii"); }, {s / "q.nii", "quatern_b", "1.62"});
+  spec.quatern[1] = std::nanf("");
+  write_nifti(s / "q.nii", spec);
+  expect_parts([&] { io::read_volume(s / "q.nii"); }, {s / "q.nii", "quatern_c", "nan"});
+}
+
+TEST(HostileSpacing, HugeOrTinySpacingIsAnErrorInEveryFormat) {
+  Scratch s;
+  for (const float v : {3e38f, 1e-5f}) {
+    NiftiSpec spec;
+    spec.pixdim[2] = v;
+    write_nifti(s / "p.nii", spec);
+    expect_parts([&] { io::read_volume(s / "p.nii"); }, {s / "p.nii", "pixdim[3]", "[0.001, 1000] mm"});
+  }
+  NiftiSpec sform;  // the sform's column length is the spacing ITK uses
+  sform.sform_code = 1;
+  sform.srow[0] = 3e38f;
+  write_nifti(s / "s.nii", sform);
+  expect_parts([&] { io::read_volume(s / "s.nii"); }, {s / "s.nii", "sform column 0", "3e+38", "[0.001, 1000] mm"});
+  write_text(s / "v.mha", "ObjectType = Image\nNDims = 3\nDimSize = 4 4 4\nElementType = MET_SHORT\nElementSpacing = 2 3e38 2"
+                          "\nElementDataFile = LOCAL\n" + short_data(64));
+  expect_parts([&] { io::read_volume(s / "v.mha"); }, {s / "v.mha", "ElementSpacing[1]", "3e+38", "[0.001, 1000] mm"});
+  write_text(s / "v.nrrd", "NRRD0004\ntype: short\ndimension: 3\nsizes: 4 4 4\nendian: little\nencoding: raw\n"
+                           "spacings: 2 2 3e38\n\n" + short_data(64));
+  expect_parts([&] { io::read_volume(s / "v.nrrd"); }, {s / "v.nrrd", "spacings[2]", "3e+38", "[0.001, 1000] mm"});
+  write_text(s / "d.nrrd", "NRRD0004\ntype: short\ndimension: 3\nsizes: 4 4 4\nendian: little\nencoding: raw\n"
+                           "space: left-posterior-superior\nspace directions: (3e38,0,0) (0,2,0) (0,0,2)\n\n" + short_data(64));
+  expect_parts([&] { io::read_volume(s / "d.nrrd"); }, {s / "d.nrrd", "axis 0", "3e+38", "[0.001, 1000] mm"});
+}
+
+TEST(HostileSpacing, DicomPixelSpacingOutsideThePlausibleRange) {
+  auto v = axial_stack(6, 2);
+  for (auto& sl : v) sl.pixel_spacing = {3e38, 3e38};
+  expect_parts([&] { plan_dicom_stack("d", v, false); }, {"d: ", "PixelSpacing", "[0.001, 1000] mm"});
+}
+
+TEST(HostileNiftiScaling, Int16WithSlopeAndInterceptIsReadAsHu) {
+  Scratch s;
+  NiftiSpec spec;
+  spec.shorts.resize(64);
+  for (int i = 0; i < 64; ++i) spec.shorts[std::size_t(i)] = std::int16_t(i * 50);  // 0 .. 3150
+  spec.scl_slope = 1;
+  spec.scl_inter = -1024;
+  write_nifti(s / "ct.nii.gz", spec);
+  const Volume v = io::read_volume_as_stored(s / "ct.nii.gz");
+  ASSERT_EQ(v.hu.size(), 64u);
+  for (int i = 0; i < 64; ++i) EXPECT_FLOAT_EQ(v.hu[std::size_t(i)], float(i * 50) - 1024.0f) << i;
+  spec.scl_slope = 0.5f;
+  write_nifti(s / "half.nii", spec);
+  const Volume h = io::read_volume_as_stored(s / "half.nii");
+  for (int i = 0; i < 64; ++i) EXPECT_FLOAT_EQ(h.hu[std::size_t(i)], 0.5f * float(i * 50) - 1024.0f) << i;
+}
+
+TEST(HostileNiftiScaling, TinyOrHugeSlopeIsRefusedNotIgnored) {
+  Scratch s;
+  for (const float slope : {1e-30f, 1e-7f, 1e7f}) {
+    NiftiSpec spec;
+    spec.scl_slope = slope;
+    write_nifti(s / "s.nii", spec);
+    char value[32];
+    std::snprintf(value, sizeof value, "%.6g", double(slope));
+    expect_parts([&] { io::read_volume(s / "s.nii"); }, {s / "s.nii", "scl_slope", value, "[1e-06, 1e+06]"});
+  }
+}
+
+namespace {
+std::string zlib_of(const std::string& raw) {
+  uLongf n = compressBound(uLong(raw.size()));
+  std::string out(n, '\0');
+  compress(reinterpret_cast<Bytef*>(out.data()), &n, reinterpret_cast<const Bytef*>(raw.data()), uLong(raw.size()));
+  out.resize(n);
+  return out;
+}
+std::string compressed_mha(const std::string& stream, long long announced) {
+  return "ObjectType = Image\nNDims = 3\nDimSize = 4 4 4\nElementType = MET_SHORT\nElementSpacing = 2 2 2\n"
+         "CompressedData = True\nCompressedDataSize = " + std::to_string(announced) + "\nElementDataFile = LOCAL\n" + stream;
+}
+}  // namespace
+
+TEST(HostileMetaImage, LyingCompressedDataSizeIsAnError) {
+  Scratch s;
+  const std::string full = zlib_of(short_data(64));
+  write_text(s / "ok.mha", compressed_mha(full, (long long)full.size()));
+  EXPECT_EQ(io::read_volume(s / "ok.mha").hu[5], 40.0f);
+  // Announced size too small / too large for the bytes present.
+  for (long long announced : {(long long)full.size() / 2, (long long)full.size() * 4}) {
+    write_text(s / "v.mha", compressed_mha(full, announced));
+    expect_parts([&] { io::read_volume(s / "v.mha"); }, {s / "v.mha", "CompressedDataSize = " + std::to_string(announced)});
+  }
+  // An honest size, but the stream holds only half the voxels.
+  const std::string half = zlib_of(short_data(32));
+  write_text(s / "h.mha", compressed_mha(half, (long long)half.size()));
+  expect_parts([&] { io::read_volume(s / "h.mha"); }, {s / "h.mha", "inflates to 64 bytes", "128"});
+  // A stream cut short (and announced so).
+  const std::string cut = full.substr(0, full.size() - 6);
+  write_text(s / "c.mha", compressed_mha(cut, (long long)cut.size()));
+  expect_parts([&] { io::read_volume(s / "c.mha"); }, {s / "c.mha", "compressed data"});
+}
+
+TEST(HostileMetaImage, ShortRawDataIsAnError) {
+  Scratch s;
+  const std::string head = "ObjectType = Image\nNDims = 3\nDimSize = 4 4 4\nElementType = MET_SHORT\nElementSpacing = 2 2 2\n";
+  write_text(s / "v.mha", head + "ElementDataFile = LOCAL\n" + short_data(50));
+  expect_parts([&] { io::read_volume(s / "v.mha"); }, {s / "v.mha", "truncated", "100 bytes", "128"});
+  write_text(s / "v.mhd", head + "ElementDataFile = v.raw\n");
+  write_text(s / "v.raw", short_data(63));
+  expect_parts([&] { io::read_volume(s / "v.mhd"); }, {s / "v.mhd", "truncated", "126 bytes", "128"});
+  // NRRD: ITK (teem) reports short raw and gzip data itself.
+  const std::string nrrd = "NRRD0004\ntype: short\ndimension: 3\nsizes: 4 4 4\nendian: little\nspacings: 2 2 2\n";
+  write_text(s / "v.nrrd", nrrd + "encoding: raw\n\n" + short_data(50));
+  expect_parts([&] { io::read_volume(s / "v.nrrd"); }, {s / "v.nrrd", "truncated or corrupt NRRD file"});
+  gzFile gz = gzopen((s / "g.gz").c_str(), "wb");
+  const std::string part = short_data(50);
+  gzwrite(gz, part.data(), unsigned(part.size()));
+  gzclose(gz);
+  std::ifstream in(s / "g.gz", std::ios::binary);
+  const std::string packed((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  write_text(s / "g.nrrd", nrrd + "encoding: gzip\n\n" + packed);
+  expect_parts([&] { io::read_volume(s / "g.nrrd"); }, {s / "g.nrrd", "truncated or corrupt NRRD file"});
+}
+
+TEST(HostileDataFile, OnlyRegularFilesBesideOrBelowTheHeader) {
+  Scratch s;
+  fs::create_directories(s.dir / "h" / "sub");
+  const std::string head = "ObjectType = Image\nNDims = 3\nDimSize = 4 4 4\nElementType = MET_SHORT\nElementSpacing = 2 2 2\n";
+  const std::string nhead = "NRRD0004\ntype: short\ndimension: 3\nsizes: 4 4 4\nendian: little\nencoding: raw\nspacings: 2 2 2\n";
+  write_text(s / "outside.raw", short_data(64));
+  write_text(s / "h/sub/in.raw", short_data(64));
+  fs::create_symlink(s.dir / "outside.raw", s.dir / "h" / "link.raw");
+  const std::string mhd = s / "h/v.mhd", nhdr = s / "h/v.nhdr";
+  // Allowed: beside or below the header's folder.
+  write_text(mhd, head + "ElementDataFile = sub/in.raw\n");
+  EXPECT_EQ(io::read_volume(mhd).hu[0], 40.0f);
+  write_text(nhdr, nhead + "data file: sub/in.raw\n\n");
+  EXPECT_EQ(io::read_volume(nhdr).hu[0], 40.0f);
+  // Refused: outside (by .., an absolute path or a symlink).
+  for (const std::string& entry : std::vector<std::string>{"../outside.raw", s / "outside.raw", "link.raw", "sub/../../outside.raw"}) {
+    write_text(mhd, head + "ElementDataFile = " + entry + "\n");
+    expect_parts([&] { io::read_volume(mhd); }, {mhd, "ElementDataFile = " + entry, "outside the header's folder"});
+    write_text(nhdr, nhead + "data file: " + entry + "\n\n");
+    expect_parts([&] { io::read_volume(nhdr); }, {nhdr, "data file: " + entry, "outside the header's folder"});
+  }
+  // Not a regular file: a FIFO (would block forever) and a device; never opened.
+  ASSERT_EQ(::mkfifo((s.dir / "h" / "fifo.raw").c_str(), 0600), 0);
+  for (const std::string entry : {"fifo.raw", "/dev/urandom"}) {
+    write_text(mhd, head + "ElementDataFile = " + entry + "\n");
+    expect_parts([&] { io::read_volume(mhd); }, {mhd, "ElementDataFile = " + entry, "not a regular file"});
+    write_text(nhdr, nhead + "data file: " + entry + "\n\n");
+    expect_parts([&] { io::read_volume(nhdr); }, {nhdr, "data file: " + entry, "not a regular file"});
+  }
+  write_text(mhd, head + "ElementDataFile = nothing.raw\n");
+  expect_parts([&] { io::read_volume(mhd); }, {mhd, "ElementDataFile = nothing.raw", "missing"});
+}
+
+TEST(HostileNiftiGeometry, SformWinsOverQformAsInNibabel) {
+  // sform and qform both set and different: the sform is used (nibabel's rule), with a warning.
+  Scratch s;
+  NiftiSpec spec;
+  spec.qform_code = 1;
+  spec.qoffset[0] = 5;  // qform: identity rotation, 2 mm, origin (5, 0, 0) RAS
+  spec.sform_code = 2;
+  const float srow[12] = {0, 3, 0, 10, -2, 0, 0, 20, 0, 0, 2.5f, 30};  // axes swapped, own spacings
+  std::copy(srow, srow + 12, spec.srow);
+  write_nifti(s / "both.nii", spec);
+  std::vector<std::string> w;
+  io::ReadOptions ro;
+  ro.warn = [&](const std::string& m) { w.push_back(m); };
+  const Volume v = io::read_volume_as_stored(s / "both.nii", ro);
+  EXPECT_NEAR(v.spacing[0], 2.0, 1e-6);
+  EXPECT_NEAR(v.spacing[1], 3.0, 1e-6);
+  EXPECT_NEAR(v.spacing[2], 2.5, 1e-6);
+  // RAS (10, 20, 30) is LPS (-10, -20, 30); column 0 = RAS (0,-1,0) = LPS (0, 1, 0).
+  EXPECT_NEAR(v.origin[0], -10, 1e-6);
+  EXPECT_NEAR(v.origin[1], -20, 1e-6);
+  EXPECT_NEAR(v.origin[2], 30, 1e-6);
+  EXPECT_NEAR(v.direction[0 * 3 + 0], 0, 1e-6);
+  EXPECT_NEAR(v.direction[1 * 3 + 0], 1, 1e-6);
+  EXPECT_NEAR(v.direction[0 * 3 + 1], -1, 1e-6);
+  EXPECT_NEAR(v.direction[2 * 3 + 2], 1, 1e-6);
+  bool noted = false;
+  for (const std::string& m : w) noted = noted || (m.find("sform") != std::string::npos && m.find("qform") != std::string::npos);
+  EXPECT_TRUE(noted) << "no warning that sform and qform differ";
+  // qform only: the qform.
+  spec.sform_code = 0;
+  write_nifti(s / "q.nii", spec);
+  const Volume q = io::read_volume_as_stored(s / "q.nii");
+  EXPECT_NEAR(q.origin[0], -5, 1e-6);
+  EXPECT_NEAR(q.spacing[1], 2.0, 1e-6);
+}
+
+TEST(HostileNiftiGeometry, GeometrySourceIsReported) {
+  Scratch s;
+  NiftiSpec spec;
+  write_nifti(s / "p.nii", spec);
+  EXPECT_EQ(io::nifti_geometry_source(s / "p.nii"), "pixdim (qform_code and sform_code 0)");
+  spec.qform_code = 1;
+  spec.qoffset[0] = 5;
+  write_nifti(s / "q.nii", spec);
+  EXPECT_EQ(io::nifti_geometry_source(s / "q.nii"), "qform (qform_code 1)");
+  spec.sform_code = 2;
+  spec.srow[3] = 5;  // the same grid as the qform: no note
+  write_nifti(s / "same.nii", spec);
+  EXPECT_EQ(io::nifti_geometry_source(s / "same.nii"), "sform (sform_code 2)");
+  spec.srow[3] = 6;
+  write_nifti(s / "both.nii.gz", spec);
+  EXPECT_EQ(io::nifti_geometry_source(s / "both.nii.gz"), "sform (sform_code 2; the qform differs)");
+  EXPECT_EQ(io::nifti_geometry_source(s / "both.nrrd"), "");
+}
+
+TEST(HostileNiftiGeometry, WithoutQformAndSformTheGridIsNibabels) {
+  // nibabel's get_base_affine: RAS diag(-2, 2, 2), centred: voxel 0 at RAS (3, -3, -3) for 4^3.
+  Scratch s;
+  write_nifti(s / "p.nii", NiftiSpec{});
+  const Volume v = io::read_volume_as_stored(s / "p.nii");
+  EXPECT_NEAR(v.origin[0], -3, 1e-9);  // LPS
+  EXPECT_NEAR(v.origin[1], 3, 1e-9);
+  EXPECT_NEAR(v.origin[2], -3, 1e-9);
+  EXPECT_NEAR(v.direction[0], 1, 1e-12);
+  EXPECT_NEAR(v.direction[4], -1, 1e-12);
+  EXPECT_NEAR(v.direction[8], 1, 1e-12);
+}
+
+TEST(HostileNiftiGeometry, ShearedSformIsAnError) {
+  Scratch s;
+  NiftiSpec spec;
+  spec.sform_code = 1;
+  spec.srow[1] = 0.5f;  // column 1 leans towards x
+  write_nifti(s / "shear.nii", spec);
+  expect_parts([&] { io::read_volume(s / "shear.nii"); }, {s / "shear.nii", "sform columns 0 and 1 are not orthogonal"});
+  spec.qform_code = 1;  // ITK would fall back to this qform silently
+  write_nifti(s / "shear_q.nii", spec);
+  expect_parts([&] { io::read_volume(s / "shear_q.nii"); }, {s / "shear_q.nii", "sform columns 0 and 1 are not orthogonal"});
+}
+
+TEST(HostileDicomStack, RescaleTagsInEverySliceOrNone) {
+  auto v = axial_stack(6, 2);
+  for (auto& sl : v) sl.intercept_text = "-1024", sl.slope_text = "1";
+  EXPECT_NO_THROW(plan_dicom_stack("d", v, false));
+  v[3].intercept_text = "-1000";  // differing values are legal DICOM: applied per slice
+  EXPECT_NO_THROW(plan_dicom_stack("d", v, false));
+  v[3].intercept_text.clear();
+  expect_parts([&] { plan_dicom_stack("d", v, false); }, {"d: ", v[3].file, "RescaleIntercept (0028,1052)", "-1024"});
+  v[3].intercept_text = "-1024";
+  v[1].slope_text.clear();
+  expect_parts([&] { plan_dicom_stack("d", v, false); }, {"d: ", v[1].file, "RescaleSlope (0028,1053)"});
+  for (auto& sl : v) sl.intercept_text.clear(), sl.slope_text.clear();  // none: the raw values (a warning may follow)
+  EXPECT_NO_THROW(plan_dicom_stack("d", v, false));
+}
+
+TEST(HostileDicomSeries, RescaleInterceptIsAppliedPerSlice) {
+  // Slices may carry different intercepts (legal DICOM): each slice's own must be applied.
+  if (!fs::exists(kDicom)) GTEST_SKIP() << kDicom << " is absent (../shared/data)";
+  Scratch s;
+  const auto files = copy_series(s.dir / "series");
+  const Volume before = io::read_volume_as_stored(s / "series");
+  // Rewrite slice 7's RescaleIntercept '-1024' as '-1000' in place (same length: the file stays
+  // valid; explicit VR little endian: tag 0028,1052, VR DS, 2-byte length, value).
+  std::ifstream in(files[7], std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  in.close();
+  const std::string tag("\x28\x00\x52\x10" "DS", 6);
+  const auto at = bytes.find(tag);
+  ASSERT_NE(at, std::string::npos);
+  const auto value = at + 8;
+  const std::size_t length = std::size_t(static_cast<unsigned char>(bytes[at + 6])) | std::size_t(static_cast<unsigned char>(bytes[at + 7])) << 8;
+  ASSERT_GE(length, 5u);
+  ASSERT_EQ(bytes.compare(value, 5, "-1024"), 0) << bytes.substr(value, length);
+  bytes.replace(value, 5, "-1000");
+  write_text(files[7].string(), bytes);
+  const Volume after = io::read_volume_as_stored(s / "series");
+  ASSERT_EQ(after.dims, before.dims);
+  const std::size_t plane = std::size_t(before.dims.x) * before.dims.y;
+  std::size_t changed_slices = 0;
+  for (int k = 0; k < before.dims.z; ++k) {
+    const float shift = after.hu[k * plane] - before.hu[k * plane];
+    bool all_same = true;
+    for (std::size_t i = 0; i < plane; ++i) all_same = all_same && after.hu[k * plane + i] - before.hu[k * plane + i] == shift;
+    EXPECT_TRUE(all_same) << "slice " << k;
+    if (shift != 0) {
+      ++changed_slices;
+      EXPECT_EQ(shift, 24.0f) << "slice " << k;
+    }
+  }
+  EXPECT_EQ(changed_slices, 1u);
 }
