@@ -199,7 +199,7 @@ std::string write_params(const Params& p, const std::string& header) {
   w.raw("# points; piecewise linear in HU between them (tau in log space), constant beyond the ends.");
   w.raw("# A link uses the values at its two elements' mean HU: axial spacing in [1 - 0.8 tau, 1 + tau],");
   w.raw("# shear within +-tau. At least 2 points, hu finite and strictly increasing, tau in (0, 1],");
-  w.raw("# w in (0, 100]. Giving points replaces the whole list.");
+  w.raw("# w in [1e-06, 100]. Giving points replaces the whole list.");
   w.raw("points = [");
   for (std::size_t i = 0; i < p.material.points.size(); ++i) {
     const auto& mp = p.material.points[i];
