@@ -4,6 +4,9 @@
 // running out of memory after minutes). The bytes per element are measured peak resident
 // sizes (GNU time, phantom lattices 128^3 to 400^3, CPU backend, Release build); see
 // docs/parameters.md. Candidate for the core library (plain C++, no dependency).
+#include <sys/resource.h>
+#include <unistd.h>
+
 #include <cstdio>
 #include <fstream>
 #include <string>
@@ -58,6 +61,21 @@ inline double available_memory_bytes() {
   return avail;
 }
 
+/// Bytes of address space this process may still map under `ulimit -v` (RLIMIT_AS): the limit
+/// less what is mapped now (/proc/self/statm). -1 when there is no limit.
+inline double address_space_left_bytes() {
+  rlimit lim{};
+  if (::getrlimit(RLIMIT_AS, &lim) != 0 || lim.rlim_cur == RLIM_INFINITY) return -1;
+  double mapped = 0;
+  {
+    std::ifstream f("/proc/self/statm");
+    double pages = 0;
+    if (f >> pages) mapped = pages * static_cast<double>(::sysconf(_SC_PAGESIZE));
+  }
+  const double left = static_cast<double>(lim.rlim_cur) - mapped;
+  return left > 0 ? left : 0;
+}
+
 inline std::string format_gb(double bytes) {
   char buf[64];
   std::snprintf(buf, sizeof buf, "%.2f GB", bytes / 1e9);
@@ -65,18 +83,26 @@ inline std::string format_gb(double bytes) {
 }
 
 /// Throws hpcm::Error when a lattice of `dims` at `bytes_per_element` does not fit in the
-/// memory available now. `what` names the lattice in the message ("--phantom 400,400,400").
+/// memory available now, nor in the address space left under `ulimit -v`: the smaller of the
+/// two counts (both are named). `what` names the lattice in the message ("--phantom 400,400,400").
 inline void check_lattice_memory(Int3 dims, double bytes_per_element, const std::string& what) {
   const double elements = double(dims.x) * double(dims.y) * double(dims.z);
   const double need = elements * bytes_per_element;
   const double avail = available_memory_bytes();
-  if (avail >= 0 && need > avail) {
+  const double address_space = address_space_left_bytes();
+  const bool over_memory = avail >= 0 && need > avail;
+  const bool over_address_space = address_space >= 0 && need > address_space;
+  if (over_memory || over_address_space) {
     char buf[64];
     std::snprintf(buf, sizeof buf, "%.0f", elements);
+    std::string have = avail >= 0 ? format_gb(avail) + " of memory are available" : "the available memory is unknown";
+    if (address_space >= 0)
+      have += " and the address-space limit (ulimit -v, RLIMIT_AS) leaves " + format_gb(address_space);
     throw Error(what + ": a lattice of " + std::to_string(dims.x) + "x" + std::to_string(dims.y) + "x" +
                 std::to_string(dims.z) + " = " + buf + " elements needs about " + format_gb(need) + " (" +
-                std::to_string(int(bytes_per_element)) + " bytes per element) but " + format_gb(avail) +
-                " of memory are available; use a smaller lattice (--downsample, --roi, a smaller --phantom)");
+                std::to_string(int(bytes_per_element)) + " bytes per element) but " + have +
+                "; use a smaller lattice (--downsample, --roi, a smaller --phantom)" +
+                (over_address_space ? " or raise ulimit -v" : ""));
   }
 }
 

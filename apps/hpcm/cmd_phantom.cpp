@@ -38,7 +38,8 @@ void register_phantom(CLI::App& app) {
     po.variant = parse_phantom_variant(o->variant, "--variant");
     if (!(o->noise >= 0 && o->noise <= 200)) throw Error("--noise " + std::to_string(o->noise) + " is out of range [0, 200]");
     const bool summary = o->summary || o->out.empty();
-    const Params p = summary ? load_params_option(o->params) : Params{};
+    // Read and validated even when only --out uses nothing of it: a bad file is never ignored.
+    const Params p = load_params_option(o->params);
     if (!o->out.empty()) {
 #if defined(HPCM_WITH_ITK)
       io::check_output_path(o->out);  // before generating: a bad destination fails at once

@@ -2,7 +2,9 @@
 
 #include <CLI/CLI.hpp>
 
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <iostream>
 #include <sstream>
 #include <vector>
@@ -22,6 +24,26 @@ Int3 parse_int3(const std::string& s, const std::string& what, int lo, int hi) {
   for (int i = 0; i < 3; ++i) v[i] = static_cast<int>(cli::parse_integer(items[i], what + " '" + s + "': value", lo, hi));
   return {v[0], v[1], v[2]};
 }
+
+namespace {
+// CLI::Range lets "nan" through (every comparison with NaN is false) and "1e39" overflows the
+// float it is stored in: only finite numbers in [lo, hi] ((lo, hi] when lo_open) pass.
+CLI::Validator finite_range(double lo, double hi, bool lo_open = false) {
+  std::ostringstream range;
+  range << (lo_open ? "(" : "[") << lo << ", " << hi << "]";
+  const std::string text = range.str();
+  return CLI::Validator(
+      [lo, hi, lo_open, text](std::string& s) -> std::string {
+        char* end = nullptr;
+        const double v = std::strtod(s.c_str(), &end);
+        const bool number = end != s.c_str() && *end == '\0';
+        if (!number || !std::isfinite(v)) return "value " + s + " is not a finite number; valid: " + text;
+        if ((lo_open ? !(v > lo) : !(v >= lo)) || !(v <= hi)) return "value " + s + " is out of range " + text;
+        return {};
+      },
+      "FLOAT in " + text);
+}
+}  // namespace
 
 int parse_options(int argc, char** argv, Options& o) {
   CLI::App app{
@@ -71,8 +93,9 @@ int parse_options(int argc, char** argv, Options& o) {
       ->check(CLI::IsMember({"none", "speed", "displacement"}));
   app.add_option("--overlay-max", o.overlay_max, "Top of the overlay colour map in lattice units (0: automatic)")
       ->check(CLI::Range(0.0, 1000.0));
-  app.add_option("--level", o.level, "HU window level");
-  app.add_option("--window", o.window, "HU window width, > 0")->check(CLI::PositiveNumber);
+  app.add_option("--level", o.level, "HU window level, [-32768, 32767] (the 16-bit CT range)")
+      ->check(finite_range(-32768.0, 32767.0));
+  app.add_option("--window", o.window, "HU window width, (0, 65536]")->check(finite_range(0.0, 65536.0, true));
   app.add_option("--slices", slices, "Slice positions X,Y,Z (sagittal x, coronal y, axial z; -1 = automatic)");
   app.add_flag("--hide-panel", o.hide_panel, "Hide the control panel (views fill the window)");
   app.add_flag("--wire", o.wire, "Draw the mesh edges");

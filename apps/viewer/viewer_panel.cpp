@@ -274,8 +274,8 @@ bool Viewer::panel_solver_and_dynamics() {
       d.mode = static_cast<DampingMode>(mode);
       changed = true;
     }
-    changed |= ImGui::SliderFloat("alpha [0,1] (B)", &d.alpha, 0, 1, "%.3f", ImGuiSliderFlags_AlwaysClamp);
-    changed |= ImGui::SliderFloat("b0 [0,1] (C)", &d.b0, 0, 1, "%.3f", ImGuiSliderFlags_AlwaysClamp);
+    changed |= ImGui::SliderFloat("alpha [0,0.99] (B)", &d.alpha, 0, 1, "%.3f", ImGuiSliderFlags_AlwaysClamp);
+    changed |= ImGui::SliderFloat("b0 [0.005,1] (C)", &d.b0, 0, 1, "%.3f", ImGuiSliderFlags_AlwaysClamp);
     auto per_tissue = [&](const char* title, PerTissue& v, float lo, float hi, const char* f) {
       bool ch = false;
       ImGui::PushID(title);
@@ -291,7 +291,7 @@ bool Viewer::panel_solver_and_dynamics() {
     changed |= per_tissue("inverse mass per class (>= 0, one > 0)", d.inverse_mass, 0, 10, "%.3f");
     changed |= ImGui::SliderFloat("s_min [0,s_max]", &d.s_min, 0, 1, "%.3f", ImGuiSliderFlags_AlwaysClamp);
     changed |= ImGui::SliderFloat("s_max [s_min,1]", &d.s_max, 0, 1, "%.3f", ImGuiSliderFlags_AlwaysClamp);
-    changed |= ImGui::InputFloat("dead zone [0,1)", &d.dead_zone, 1e-4f, 1e-3f, "%.5f");
+    changed |= ImGui::InputFloat("dead zone [3e-4,1) (B, C)", &d.dead_zone, 1e-4f, 1e-3f, "%.5f");
     changed |= ImGui::SliderFloat("v_max (0,10]", &d.v_max, 0.001f, 10, "%.3f", ImGuiSliderFlags_AlwaysClamp | ImGuiSliderFlags_Logarithmic);
     changed |= ImGui::SliderFloat("beta [0,2]", &d.beta, 0, 2, "%.3f", ImGuiSliderFlags_AlwaysClamp);
     changed |= per_tissue("rho per class [0,2]", d.rho, 0, 2, "%.3f");

@@ -33,12 +33,18 @@ HPCM_HD inline LinkLimits limits_from_tau(float tau, float w) {
   return {1.0f - 0.8f * tau, 1.0f + tau, shear_limit(tau), w};
 }
 
+/// Range of the link time penalty w. The propagation's time buckets are w_min wide; arrival
+/// times reach (path length) * w_max, so w_max / w_min bounds the bucket numbers (they must fit
+/// 64 bits at 2^31 elements: 100 / 1e-6 * 2^31 < 2^64).
+inline constexpr float kMinLinkPenalty = 1e-6f;
+inline constexpr float kMaxLinkPenalty = 100.0f;
+
 struct MaterialTable {
   /// Defaults: air, fat, muscle/organ, bone (SPEC §3 table).
   std::vector<MaterialPoint> points{{-1000.f, 0.5f, 1.0f}, {-100.f, 0.35f, 0.6f}, {50.f, 0.22f, 0.3f}, {700.f, 0.005f, 0.02f}};
 
   /// Throws hpcm::Error: at least 2 points, HU finite and strictly increasing,
-  /// tau in (0, 1], w in (0, 100].
+  /// tau in (0, 1], w in [kMinLinkPenalty, kMaxLinkPenalty] = [1e-6, 100].
   void validate() const;
   /// Interpolated values; constant beyond the first and last control point.
   float tau(float hu) const;

@@ -7,6 +7,7 @@
 // outside that range). Every component reads links through this one table.
 // The mutable State lives in state.hpp; solvers step one State into the next.
 #include <array>
+#include <string>
 #include <vector>
 
 #include "hpcm/params.hpp"
@@ -59,5 +60,14 @@ void rebuild_materials(Model& m, const Params& p);
 /// The SPEC §7 grab centre: central axial slice, line x = Nx/2, walking from y = 0
 /// posteriorly to the first element with HU >= -500. Throws if the line has none.
 Index paper_grab_centre(const Model& m);
+
+/// Fewest elements along every axis that a grab of `grab_radius` lattice units needs: the grab
+/// holds the 2 floor(r) + 1 elements around its centre along an axis, and the tissue needs a
+/// free, linked element on each side of them to deform at all: 2 floor(r) + 3 (5 at the
+/// default radius 1.5). A thinner lattice would be all tool (or all border) along that axis.
+int min_lattice_extent(float grab_radius);
+/// Throws hpcm::Error starting with `what` when an axis of m is shorter than
+/// min_lattice_extent(grab_radius), naming the lattice and the minimum.
+void check_lattice_extent(const Model& m, float grab_radius, const std::string& what);
 
 }  // namespace hpcm

@@ -33,6 +33,12 @@ struct SolverParams {
   friend bool operator==(const SolverParams&, const SolverParams&) = default;
 };
 
+/// Damping that still brings the motion to rest (measured, docs/parameters.md "Stability"):
+/// Params::validate rejects weaker settings for the modes that use them.
+inline constexpr float kMinSettlingB0 = 0.005f;        ///< viscoelastic: b0 at least this
+inline constexpr float kMaxSettlingAlpha = 0.99f;      ///< simple: alpha at most this
+inline constexpr float kMinSettlingDeadZone = 3e-4f;   ///< simple and viscoelastic: dead_zone at least this
+
 struct DynamicsParams {
   DampingMode mode = DampingMode::Viscoelastic;
   float alpha = 0.98f;                       ///< simple damping, [0, 1]

@@ -199,7 +199,7 @@ std::string write_params(const Params& p, const std::string& header) {
   w.raw("# points; piecewise linear in HU between them (tau in log space), constant beyond the ends.");
   w.raw("# A link uses the values at its two elements' mean HU: axial spacing in [1 - 0.8 tau, 1 + tau],");
   w.raw("# shear within +-tau. At least 2 points, hu finite and strictly increasing, tau in (0, 1],");
-  w.raw("# w in (0, 100]. Giving points replaces the whole list.");
+  w.raw("# w in [1e-06, 100]. Giving points replaces the whole list.");
   w.raw("points = [");
   for (std::size_t i = 0; i < p.material.points.size(); ++i) {
     const auto& mp = p.material.points[i];
@@ -225,13 +225,13 @@ std::string write_params(const Params& p, const std::string& header) {
   w.raw("# Independent velocity layer (SPEC 5). Per-class values are tables with the keys air,");
   w.raw("# skin_fat, muscle_organ, bone (a missing class keeps its value) or one number for all.");
   w.kv("mode = " + quoted(damping_mode_name(p.dynamics.mode)), "\"none\" (A) | \"simple\" (B) | \"viscoelastic\" (C); also \"A\", \"B\", \"C\"");
-  w.kv("alpha = " + fmt_float(p.dynamics.alpha), "[0, 1] simple damping: V <- alpha V + s dX");
-  w.kv("b0 = " + fmt_float(p.dynamics.b0), "[0, 1] viscoelastic: V <- (V + s dX) / (1 + b0 + b1 |X - X0|)");
+  w.kv("alpha = " + fmt_float(p.dynamics.alpha), "[0, 1], at most 0.99 under simple: V <- alpha V + s dX");
+  w.kv("b0 = " + fmt_float(p.dynamics.b0), "[0, 1], at least 0.005 under viscoelastic: V <- (V + s dX) / (1 + b0 + b1 |X - X0|)");
   w.kv("b1 = " + per_tissue(p.dynamics.b1), "each [0, 1]");
   w.kv("inverse_mass = " + per_tissue(p.dynamics.inverse_mass), "each in [0, 1e6], at least one > 0; 0 = no dynamics (bone)");
   w.kv("s_min = " + fmt_float(p.dynamics.s_min), "response scale s = clamp(m^-1 / max m^-1, s_min, s_max),");
   w.kv("s_max = " + fmt_float(p.dynamics.s_max), "0 <= s_min <= s_max <= 1");
-  w.kv("dead_zone = " + fmt_float(p.dynamics.dead_zone), "[0, 0.999] lattice units: smaller ChainMail corrections dX count as 0");
+  w.kv("dead_zone = " + fmt_float(p.dynamics.dead_zone), "[0, 0.999] lattice units, at least 3e-4 under simple/viscoelastic: smaller ChainMail corrections dX count as 0");
   w.kv("v_max = " + fmt_float(p.dynamics.v_max), "(0, 10] lattice units / frame: velocity magnitude clamp");
   w.kv("beta = " + fmt_float(p.dynamics.beta), "[0, 2] global inertia gain: X <- X+ + beta rho V");
   w.kv("rho = " + per_tissue(p.dynamics.rho), "each [0, 2] per-class position gain");

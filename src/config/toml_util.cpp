@@ -134,6 +134,10 @@ float to_float(const Ctx& c, const toml::node& n, const std::string& path) {
   if (!std::isfinite(v)) fail(c, &n, path + " = " + show(n) + " is not a finite number");
   if (std::fabs(v) > static_cast<double>(FLT_MAX))
     fail(c, &n, path + " = " + show(n) + " is outside the single-precision range");
+  // Below FLT_MIN a float loses precision (denormal) or becomes 0: refuse rather than change it.
+  if (v != 0.0 && std::fabs(v) < static_cast<double>(FLT_MIN))
+    fail(c, &n, path + " = " + show(n) + " is below the smallest positive single-precision value " +
+                    fmt_float(FLT_MIN) + " in magnitude; write 0 or a larger value");
   return static_cast<float>(v);
 }
 
@@ -268,6 +272,9 @@ std::string read_text(const std::string& path, const std::string& what) {
   struct stat st {};
   if (::stat(path.c_str(), &st) != 0) throw Error(path + ": cannot open the " + what + " (" + std::strerror(errno) + ")");
   if (S_ISDIR(st.st_mode)) throw Error(path + ": is a directory, not a " + what);
+  // A FIFO or device can block on open or never end: only regular files are read.
+  if (!S_ISREG(st.st_mode))
+    throw Error(path + ": is not a regular file (a FIFO, device or socket), not a " + what);
   std::ifstream in(path, std::ios::binary);
   if (!in) throw Error(path + ": cannot open the " + what);
   std::string text(kMaxConfigBytes + 1, '\0');

@@ -18,9 +18,10 @@ void MaterialTable::validate() const {
       m << key.str() << ".tau = " << p.tau << " is out of range (0, 1]";
       throw Error(m.str());
     }
-    if (!(p.w > 0.0f && p.w <= 100.0f)) {
+    if (!(p.w >= kMinLinkPenalty && p.w <= kMaxLinkPenalty)) {
       std::ostringstream m;
-      m << key.str() << ".w = " << p.w << " is out of range (0, 100]";
+      m << key.str() << ".w = " << p.w << " is out of range [" << kMinLinkPenalty << ", " << kMaxLinkPenalty
+        << "] (the propagation counts arrival times in steps of the smallest w: their number must fit 64 bits)";
       throw Error(m.str());
     }
     if (k > 0 && !(p.hu > points[k - 1].hu)) {

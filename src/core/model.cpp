@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <sstream>
 
 namespace hpcm {
 
@@ -94,6 +95,20 @@ Index paper_grab_centre(const Model& m) {
     if (m.hu[static_cast<std::size_t>(m.index(x, y, z))] >= -500.0f) return m.index(x, y, z);
   throw Error("paper protocol: no element with HU >= -500 on the line x = " + std::to_string(x) +
               ", z = " + std::to_string(z) + " (is there a body in the volume?)");
+}
+
+int min_lattice_extent(float grab_radius) { return 2 * static_cast<int>(std::floor(grab_radius)) + 3; }
+
+void check_lattice_extent(const Model& m, float grab_radius, const std::string& what) {
+  const int need = min_lattice_extent(grab_radius);
+  if (m.dims.x >= need && m.dims.y >= need && m.dims.z >= need) return;
+  const int held = need - 2;
+  std::ostringstream msg;
+  msg << what << " (grab radius " << grab_radius << ") needs a lattice of at least " << need
+      << " elements along every axis (the " << held << " the grab holds and a free one on each side), but the lattice is "
+      << m.dims.x << "x" << m.dims.y << "x" << m.dims.z
+      << "; use a smaller --downsample, a larger --roi or --phantom, or a smaller grab radius";
+  throw Error(msg.str());
 }
 
 }  // namespace hpcm

@@ -94,16 +94,24 @@ PerTissue DynamicsParams::response_scale() const {
 }
 
 namespace {
+// Measured on the 16x16x12 phantom (docs/parameters.md, "Stability"): with little
+// over-relaxation (k near 1) settings at 90 % of the linear limit kept moving; a take-back of at
+// least kMinTakeBack covers every measured case.
+constexpr float kMinTakeBack = 1.15f;
+// Near the limit the linear decay is too slow for the nonlinear layer (dead zone, v_max clamp,
+// sleeping): 0.998 of the limit grew to 1.5 cells per frame, 0.994 settled.
+constexpr float kStabilityMargin = 0.99f;
 // The largest share of an element's displacement that one frame of relaxation (K red-black
 // sweeps, over-relaxation omega) takes back (k in docs/parameters.md, "Stability"). The
 // lattice's 6-neighbour coupling is two-cyclic, so each eigenvalue l of one sweep solves
 // (l + omega - 1)^2 = l omega^2 mu^2 for an eigenvalue mu of the Jacobi step (Young's SOR
 // theory): real ones lie in (0, 1), the others have modulus |omega - 1| and K sweeps turn them
 // by K times their angle. Where that lands on the negative axis a frame takes back
-// 1 + |omega - 1|^K of the displacement: it throws the element past rest.
+// 1 + |omega - 1|^K of the displacement: it throws the element past rest. At least kMinTakeBack.
 float relaxation_take_back(float omega, int sweeps) {
   if (sweeps <= 0) return 0.0f;  // no relaxation: nothing is taken back
-  return 1.0f + static_cast<float>(std::pow(std::abs(static_cast<double>(omega) - 1.0), sweeps));
+  const float k = 1.0f + static_cast<float>(std::pow(std::abs(static_cast<double>(omega) - 1.0), sweeps));
+  return std::max(k, kMinTakeBack);
 }
 }  // namespace
 
@@ -116,10 +124,10 @@ float DynamicsParams::stable_gain_limit(float relax_omega, int relax_sweeps) con
   if (k == 0.0f) return kNoLimit;
   switch (mode) {
     case DampingMode::None: return kNoLimit;
-    case DampingMode::Simple: return (1.0f + alpha) * (2.0f - k) / k;
+    case DampingMode::Simple: return kStabilityMargin * (1.0f + alpha) * (2.0f - k) / k;
     case DampingMode::Viscoelastic: {
       const float d = 1.0f / (1.0f + b0);
-      return (1.0f + d) * (2.0f - k) / (d * k);
+      return kStabilityMargin * (1.0f + d) * (2.0f - k) / (d * k);
     }
   }
   return kNoLimit;
@@ -138,11 +146,33 @@ std::string sweeps_hint(const Params& p) {
 }
 }  // namespace
 
+namespace {
+// Damping too weak to bring the motion to rest: b0 = 0, alpha = 1 or dead_zone = 0 keep moving
+// at about 1e-3 cells per frame forever. Checked for the modes that use them.
+// viscoelastic b0 = 0.001, simple alpha = 0.995 (at omega 1.95) and dead_zone = 1e-4 still
+// moved after 3,000 frames of the 16x16x12 phantom; at the bounds (params.hpp) it came to rest.
+void check_damping_settles(const DynamicsParams& d) {
+  std::ostringstream m;
+  if (d.mode == DampingMode::Viscoelastic && d.b0 < kMinSettlingB0)
+    m << "dynamics.b0 = " << d.b0 << " is below " << kMinSettlingB0 << " under dynamics.mode = viscoelastic";
+  else if (d.mode == DampingMode::Simple && d.alpha > kMaxSettlingAlpha)
+    m << "dynamics.alpha = " << d.alpha << " is above " << kMaxSettlingAlpha << " under dynamics.mode = simple";
+  else if (d.mode != DampingMode::None && d.dead_zone < kMinSettlingDeadZone)
+    m << "dynamics.dead_zone = " << d.dead_zone << " is below " << kMinSettlingDeadZone << " with dynamics.mode = "
+      << damping_mode_name(d.mode);
+  else
+    return;
+  m << ": the motion would never come to rest (too little damping; stability rule, docs/parameters.md)";
+  throw Error(m.str());
+}
+}  // namespace
+
 void Params::validate() const {
   tissue.validate();
   material.validate();
   solver.validate();
   dynamics.validate();
+  check_damping_settles(dynamics);
   const float limit = dynamics.stable_gain_limit(solver.relax_omega, solver.relax_sweeps);
   const PerTissue s = dynamics.response_scale();
   for (int t = 0; t < kTissueCount; ++t) {

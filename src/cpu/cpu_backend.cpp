@@ -72,6 +72,11 @@ void CpuBackend::set_fixed(const std::vector<Index>& elements, const std::vector
                            const std::vector<std::uint8_t>& flags) {
   if (targets.size() != elements.size() || flags.size() != elements.size())
     throw Error("set_fixed: elements, targets and flags must have the same length");
+  // Validate everything before changing anything: a refused call leaves the old set in force.
+  for (Index e : elements)
+    if (e < 0 || e >= m_->size())
+      throw Error("set_fixed: element " + std::to_string(e) + " is out of range [0, " + std::to_string(m_->size() - 1) +
+                  "]");
   const Layout& L = st_.lay;
   for (Index i : fixed_) st_.flags[static_cast<std::size_t>(L.at(i))] = 0;
   std::vector<Index> old;
@@ -79,7 +84,6 @@ void CpuBackend::set_fixed(const std::vector<Index>& elements, const std::vector
   fixed_ = elements;
   targets_ = targets;
   for (std::size_t k = 0; k < fixed_.size(); ++k) {
-    if (fixed_[k] < 0 || fixed_[k] >= m_->size()) throw Error("set_fixed: element " + std::to_string(fixed_[k]) + " is out of range");
     st_.flags[static_cast<std::size_t>(L.at(fixed_[k]))] = static_cast<std::uint8_t>(kFixed | flags[k]);
   }
   // Elements released from FIXED (grab released) must be relaxed again: mark their bricks.

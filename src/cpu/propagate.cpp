@@ -19,6 +19,13 @@ void Propagation::init(const Model& m, const Layout& lay, const BrickGrid& grid)
   delta_ = bucket_width(m);
 }
 
+void Propagation::recycle(std::vector<Index>& pending) {
+  if (pending.capacity() == 0) return;
+  pending.clear();
+  spare_.emplace_back();
+  spare_.back().swap(pending);
+}
+
 int Propagation::gather(const Storage& st, Index e, Neighbour* nb) const {
   const Model& m = *m_;
   const Int3 c = m.coords(e);
@@ -45,16 +52,24 @@ PropagateStats Propagation::run(Storage& st, const std::vector<Index>& fixed, co
     final_[k] = 0;
   }
   reached_.clear();
-  for (auto& b : buckets_) b.clear();
+  for (auto& entry : buckets_) recycle(entry.second);
+  buckets_.clear();
   const double delta = delta_;
-  auto push_neighbours = [&](Index i, float t) {
+  // `processed`: the bucket being decided. A push below it (float rounding) is dropped: that
+  // bucket is decided and is not visited again. A push into it is decided before moving on.
+  auto push_neighbours = [&](Index i, float t, unsigned long long processed) {
     const Int3 c = m.coords(i);
     for_each_face_neighbour(m, c.x, c.y, c.z, i, [&](Index n, int, int, const LinkLimits& lim) {
       const Index k = L.at(n);
       if (final_[k] || (st.flags[k] & kFixed)) return;
-      const std::size_t b = static_cast<std::size_t>(bucket_of(t + lim.w, delta));
-      if (b >= buckets_.size()) buckets_.resize(b + 1);
-      buckets_[b].push_back(n);
+      const unsigned long long b = bucket_of(t + lim.w, delta);
+      if (b < processed) return;
+      auto [it, added] = buckets_.try_emplace(b);
+      if (added && !spare_.empty()) {
+        it->second.swap(spare_.back());
+        spare_.pop_back();
+      }
+      it->second.push_back(n);
     });
   };
   for (Index f : fixed) {
@@ -67,16 +82,20 @@ PropagateStats Propagation::run(Storage& st, const std::vector<Index>& fixed, co
     if (st.flags[L.at(f)] & kGrabbed) {
       const Index b = grid_.brick_of_index(f);
       touched[b] = hot[b] = 1;
-      push_neighbours(f, 0.0f);
+      push_neighbours(f, 0.0f, 0);
     }
 
   std::vector<Index> list;
   int iterations = 0;
   constexpr std::int64_t kChunk = 1024;  // elements per work item of a large bucket
-  for (std::size_t kb = 0; kb < buckets_.size(); ++kb) {
-    if (buckets_[kb].empty()) continue;
-    list.swap(buckets_[kb]);
-    buckets_[kb].clear();
+  // Buckets in ascending order; a bucket that gets new candidates while it is decided (float
+  // rounding, see below) is the smallest again and is decided again.
+  while (!buckets_.empty()) {
+    const auto first = buckets_.begin();
+    const unsigned long long kb = first->first;
+    list.swap(first->second);
+    recycle(first->second);
+    buckets_.erase(first);
     std::sort(list.begin(), list.end());
     list.erase(std::unique(list.begin(), list.end()), list.end());
     list.erase(std::remove_if(list.begin(), list.end(), [&](Index e) { return final_[L.at(e)] != 0; }), list.end());
@@ -136,12 +155,11 @@ PropagateStats Propagation::run(Storage& st, const std::vector<Index>& fixed, co
         touched[b] = hot[b] = 1;
       }
     }
-    for (Index e : list)
-      if (final_[L.at(e)]) push_neighbours(e, st.time[L.at(e)]);
-    list.clear();
     // t + w >= (k+1)*delta mathematically, but float rounding can file a new candidate back
-    // into this bucket: decide those too before moving on.
-    if (!buckets_[kb].empty()) --kb;
+    // into this bucket: it is then the smallest pending one and is decided again next.
+    for (Index e : list)
+      if (final_[L.at(e)]) push_neighbours(e, st.time[L.at(e)], kb);
+    list.clear();
   }
   ps.sweeps = iterations;
   return ps;

@@ -8,6 +8,7 @@
 // wave: anchors never move, and their neighbours are already inside their boxes (the link
 // restoration keeps them so).
 #include <cstdint>
+#include <map>
 #include <vector>
 
 #include "cpu/storage.hpp"
@@ -28,12 +29,17 @@ class Propagation {
 
  private:
   int gather(const Storage& st, Index e, solver::Neighbour* nb) const;
+  void recycle(std::vector<Index>& pending);
   const Model* m_ = nullptr;
   solver::BrickGrid grid_;
   float delta_ = 1.0f;
   std::vector<std::uint8_t> final_;          ///< storage order: decided in this wave
   std::vector<Index> reached_;               ///< linear indices whose time was set in the last wave
-  std::vector<std::vector<Index>> buckets_;  ///< pending elements (linear) per time bucket
+  // Pending elements (linear) per non-empty time bucket. Sparse: a wide w range (w_max / w_min
+  // large) spreads a wave over very many bucket numbers, most of them empty; storage follows
+  // the pending elements, not the highest bucket number.
+  std::map<unsigned long long, std::vector<Index>> buckets_;
+  std::vector<std::vector<Index>> spare_;  ///< emptied bucket lists, kept for their capacity
   std::vector<float> scratch_t_;
   std::vector<Vec3> scratch_p_;
   std::vector<std::uint8_t> chunk_any_;

@@ -36,11 +36,29 @@ void WorkerPool::dispatch(const Job& job) {
   job_fn_.store(job.fn);
   job_call_.store(job.call);
   done_.store(0);
+  failed_.store(false);
   ticket_.store(ticket_of(g, 0));
   generation_.store(g);
   generation_.notify_all();
   work(g, job);
   for (std::int64_t d = done_.load(); d < job.count; d = done_.load()) done_.wait(d);
+  // Every item is finished or skipped: no thread touches the job any more.
+  if (failed_.load()) {
+    std::exception_ptr error;
+    {
+      const std::lock_guard<std::mutex> lock(error_mutex_);
+      error.swap(error_);
+    }
+    std::rethrow_exception(error);
+  }
+}
+
+void WorkerPool::record_failure() {
+  {
+    const std::lock_guard<std::mutex> lock(error_mutex_);
+    if (!error_) error_ = std::current_exception();
+  }
+  failed_.store(true);
 }
 
 void WorkerPool::work(std::uint64_t generation, const Job& job) {
@@ -52,7 +70,13 @@ void WorkerPool::work(std::uint64_t generation, const Job& job) {
       item = static_cast<std::int64_t>(t & 0xffffffffu);
       if (item >= job.count) return;
     } while (!ticket_.compare_exchange_weak(t, t + 1));
-    job.call(job.fn, item);
+    if (!failed_.load()) {
+      try {
+        job.call(job.fn, item);
+      } catch (...) {
+        record_failure();
+      }
+    }
     if (done_.fetch_add(1) + 1 == job.count) done_.notify_all();
   }
 }

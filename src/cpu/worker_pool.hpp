@@ -7,8 +7,14 @@
 // not finished. Idle workers block in the kernel (futex wait), they do not spin.
 // Results must not depend on which thread ran an item: jobs write per-item results that the
 // caller combines in item order.
+// An exception thrown by an item (on any thread) is not lost and does not end the process:
+// the first one is kept, the items not yet started are skipped, and run() rethrows it on the
+// caller once every claimed item has finished (so no thread still runs the caller's function
+// when its frame is gone).
 #include <atomic>
 #include <cstdint>
+#include <exception>
+#include <mutex>
 #include <thread>
 #include <vector>
 
@@ -25,7 +31,8 @@ class WorkerPool {
   int threads() const { return static_cast<int>(workers_.size()) + 1; }
 
   /// Runs fn(k) for every k in [0, count) and returns when all have finished. Jobs with
-  /// fewer than `min_parallel` items run on the caller alone.
+  /// fewer than `min_parallel` items run on the caller alone. If an item throws, the first
+  /// exception is rethrown here after all threads have left the job; some items may not run.
   template <class F>
   void run(std::int64_t count, F&& fn, std::int64_t min_parallel = 2) {
     if (count <= 0) return;
@@ -45,6 +52,7 @@ class WorkerPool {
   void dispatch(const Job& job);
   void work(std::uint64_t generation, const Job& job);
   void worker_loop(std::uint64_t seen);
+  void record_failure();
 
   std::vector<std::thread> workers_;
   // The current job, published before its generation (atomics: a late reader may mix fields
@@ -56,6 +64,9 @@ class WorkerPool {
   std::atomic<std::uint64_t> ticket_{0};      ///< generation << 32 | next item to claim
   std::atomic<std::int64_t> done_{0};         ///< items finished
   std::atomic<bool> stop_{false};
+  std::atomic<bool> failed_{false};  ///< an item of the current job threw: skip the rest
+  std::mutex error_mutex_;
+  std::exception_ptr error_;  ///< the first exception of the current job (under error_mutex_)
 };
 
 /// Threads the backend uses: OpenMP's setting (OMP_NUM_THREADS / omp_set_num_threads), at least 1.

@@ -194,6 +194,12 @@ class DeviceBackend final : public Backend {
                  const std::vector<std::uint8_t>& flags) override {
     if (targets.size() != elements.size() || flags.size() != elements.size())
       throw Error("set_fixed: elements, targets and flags must have the same length");
+    // Validate everything before changing anything (seen_ included): a refused call leaves the
+    // old set in force.
+    for (Index e : elements)
+      if (e < 0 || e >= L_.n)
+        throw Error("set_fixed: element " + std::to_string(e) + " is out of range [0, " + std::to_string(L_.n - 1) +
+                    "]");
     // Duplicates (an anchor that is also grabbed): the last occurrence wins, as on the CPU.
     std::vector<int> idx;
     std::vector<Vec3> tg;
@@ -202,7 +208,6 @@ class DeviceBackend final : public Backend {
     if (seen_.size() != static_cast<std::size_t>(L_.n)) seen_.assign(static_cast<std::size_t>(L_.n), 0);
     for (std::size_t k = elements.size(); k-- > 0;) {
       const Index e = elements[k];
-      if (e < 0 || e >= L_.n) throw Error("set_fixed: element " + std::to_string(e) + " is out of range");
       if (seen_[static_cast<std::size_t>(e)]) continue;
       seen_[static_cast<std::size_t>(e)] = 1;
       idx.push_back(static_cast<int>(e));

@@ -125,6 +125,8 @@ ExperimentResult run_experiment(const Model& model, const Params& params, const 
   res.dims = model.dims;
   res.elements = model.size();
   const auto& g0 = opt.scenario.grabs.back();
+  for (const GrabAction& g : opt.scenario.grabs)
+    check_lattice_extent(model, g.radius > 0 ? g.radius : params.solver.grab_radius, "experiment: the scenario's grab");
   res.grab_centre = g0.centre ? model.index(g0.centre->x, g0.centre->y, g0.centre->z) : paper_grab_centre(model);
   res.release_frame = opt.scenario.last_release_frame();
   res.recorded_frames = opt.scenario.frames - res.release_frame;

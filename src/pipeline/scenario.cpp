@@ -73,6 +73,11 @@ Vec3 path_offset(const GrabAction& g, int r) {
 
 ScenarioPlayer::ScenarioPlayer(const Scenario& s, Simulation& sim) : scenario_(s), sim_(sim) {
   scenario_.validate(sim.model());
+  for (std::size_t k = 0; k < scenario_.grabs.size(); ++k) {
+    const GrabAction& g = scenario_.grabs[k];
+    check_lattice_extent(sim.model(), g.radius > 0 ? g.radius : sim.params().solver.grab_radius,
+                         "scenario '" + scenario_.name + "': grab[" + std::to_string(k) + "]");
+  }
   for (const auto& g : scenario_.grabs)
     centres_.push_back(g.centre ? sim.model().index(g.centre->x, g.centre->y, g.centre->z) : paper_grab_centre(sim.model()));
 }

@@ -64,7 +64,7 @@ ok "no output folder created by a rejected command"
 mkdir -p pdir
 expect_error params_dir "pdir: is a directory, not a parameter file" "$HPCM" params --check pdir
 expect_error params_dir_run "pdir: is a directory" "$HPCM" run --phantom 24,24,16 --params pdir --out o_p
-expect_error params_dev_zero "/dev/zero: larger than 4 MiB" timeout 20 "$HPCM" params --check /dev/zero
+expect_error params_dev_zero "/dev/zero: is not a regular file" timeout 20 "$HPCM" params --check /dev/zero
 expect_error scenario_dir "pdir: is a directory, not a scenario file" "$HPCM" params --check-scenario pdir
 
 # ---- 4. output folders: staged, never mixed, unwritable found first ------------------------------

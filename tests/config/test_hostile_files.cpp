@@ -2,9 +2,13 @@
 // huge files are clear errors (bounded reads, no hang); keyframe offsets are bounded so that
 // a scenario accepted by --check-scenario cannot overflow to a non-finite tool offset mid-run.
 #include <gtest/gtest.h>
+#include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <filesystem>
+#include <future>
 #include <fstream>
 
 #include "hpcm/config.hpp"
@@ -36,10 +40,31 @@ TEST(HostileConfigFiles, DirectoryIsNotAParameterFile) {
   fs::remove_all(d);
 }
 
-TEST(HostileConfigFiles, DevZeroIsReadBoundedAndRefused) {
+TEST(HostileConfigFiles, DevZeroIsRefusedAsNotARegularFile) {
   if (!fs::exists("/dev/zero")) GTEST_SKIP() << "no /dev/zero";
   const std::string msg = error_of([] { cfg::load_params("/dev/zero"); });
-  EXPECT_NE(msg.find("/dev/zero: larger than 4 MiB"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("/dev/zero: is not a regular file"), std::string::npos) << msg;
+}
+
+// Opening a FIFO blocks until a writer comes: it must be refused before it is opened.
+TEST(HostileConfigFiles, FifoIsRefusedWithoutBlocking) {
+  const fs::path d = scratch("fifo");
+  const fs::path fifo = d / "params.toml";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  // Without the check the read blocks: after 5 s a writer opens and closes the FIFO to free it.
+  const auto error_within_5s = [&](const std::function<void()>& load) {
+    auto reading = std::async(std::launch::async, [&] { return error_of(load); });
+    if (reading.wait_for(std::chrono::seconds(5)) == std::future_status::timeout) {
+      ADD_FAILURE() << "blocked on a FIFO";
+      ::close(::open(fifo.c_str(), O_WRONLY));
+    }
+    return reading.get();
+  };
+  const std::string pmsg = error_within_5s([&] { cfg::load_params(fifo.string()); });
+  EXPECT_NE(pmsg.find(fifo.string() + ": is not a regular file"), std::string::npos) << pmsg;
+  const std::string smsg = error_within_5s([&] { cfg::load_scenario(fifo.string()); });
+  EXPECT_NE(smsg.find("not a scenario file"), std::string::npos) << smsg;
+  fs::remove_all(d);
 }
 
 TEST(HostileConfigFiles, BinaryAndOversizedFilesAreRefused) {

@@ -79,7 +79,7 @@ Params odd_params() {
   p.dynamics.inverse_mass = {0.5f, 1.0f, 0.001f, 1e-6f};
   p.dynamics.s_min = 0.05f;
   p.dynamics.s_max = 0.95f;
-  p.dynamics.dead_zone = 1.0e-7f;
+  p.dynamics.dead_zone = 3.3e-4f;  // at least 3e-4 under simple (it never comes to rest below)
   p.dynamics.v_max = 9.999f;
   p.dynamics.beta = 0.5f;  // beta * rho * s within the stability limit of alpha = 0.1 at 3 sweeps
   p.dynamics.rho = {0.0f, 0.5f, 1.5f, 2.0f};
@@ -155,13 +155,13 @@ TEST(ParamsFile, ExactRoundTripOfRandomFloats) {
     p.solver.grab_radius = 1e-3f + 60.0f * u01(rng);
     p.solver.relax_threshold = 0.5f * u01(rng) * u01(rng);
     p.dynamics.mode = static_cast<hpcm::DampingMode>(mode(rng));
-    p.dynamics.alpha = u01(rng);
-    p.dynamics.b0 = u01(rng);
+    p.dynamics.alpha = hpcm::kMaxSettlingAlpha * u01(rng);
+    p.dynamics.b0 = std::max(hpcm::kMinSettlingB0, u01(rng));
     for (auto& v : p.dynamics.b1) v = u01(rng);
     for (auto& v : p.dynamics.inverse_mass) v = 0.001f + 5.0f * u01(rng);
     p.dynamics.s_min = 0.5f * u01(rng);
     p.dynamics.s_max = 0.5f + 0.5f * u01(rng);
-    p.dynamics.dead_zone = 0.01f * u01(rng) * u01(rng) * u01(rng);
+    p.dynamics.dead_zone = hpcm::kMinSettlingDeadZone + 0.01f * u01(rng) * u01(rng) * u01(rng);
     p.dynamics.v_max = 1e-4f + 9.0f * u01(rng);
     p.dynamics.beta = 2.0f * u01(rng);
     for (auto& v : p.dynamics.rho) v = 2.0f * u01(rng);
@@ -320,6 +320,15 @@ TEST(ParamsFile, NonFiniteAndOverflowingNumbersAreErrors) {
   EXPECT_CONTAINS(error_of("[solver]\nrelax_sweeps = 9999999999"), "does not fit in a 32-bit integer");
 }
 
+// A magnitude below FLT_MIN would silently become 0 (or lose precision): refused, 0 itself is fine.
+TEST(ParamsFile, NumbersBelowTheSmallestFloatAreErrorsNotZero) {
+  EXPECT_CONTAINS(error_of("[dynamics]\nalpha = 1e-50"),
+                  "dynamics.alpha = 1e-50 is below the smallest positive single-precision value 1.1754944e-38");
+  EXPECT_CONTAINS(error_of("[dynamics]\nb0 = -1e-40"), "dynamics.b0 = -1e-40 is below the smallest positive");
+  EXPECT_EQ(error_of("[dynamics]\nalpha = 0.0"), "");
+  EXPECT_EQ(error_of("[dynamics]\nalpha = 1.2e-38"), "");
+}
+
 TEST(ParamsFile, ThresholdsMustIncrease) {
   for (const char* text : {"[tissue]\nt1 = 0\nt2 = 0", "[tissue]\nt2 = 400", "[tissue]\nt1 = 500\nt2 = 100\nt3 = 50",
                            "[tissue]\npreset = \"robust\"\nt2 = -600"}) {
@@ -347,7 +356,9 @@ TEST(ParamsFile, BadControlPoints) {
   EXPECT_CONTAINS(m, "(0, 1]");
   m = error_of("[material]\npoints = [{ hu = 0, tau = 0.5, w = 0.1 }, { hu = 10, tau = 0.05, w = -1 }]");
   EXPECT_CONTAINS(m, "material.points[1].w");
-  EXPECT_CONTAINS(m, "(0, 100]");
+  EXPECT_CONTAINS(m, "[1e-06, 100]");
+  m = error_of("[material]\npoints = [{ hu = 0, tau = 0.5, w = 0.1 }, { hu = 10, tau = 0.05, w = 9e-7 }]");
+  EXPECT_CONTAINS(m, "material.points[1].w = 9e-07 is out of range [1e-06, 100]");
   m = error_of("[material]\npoints = [{ hu = 0, tau = 0.5 }, { hu = 10, tau = 0.05, w = 1 }]");
   EXPECT_CONTAINS(m, "material.points[0] is missing 'w'");
 }

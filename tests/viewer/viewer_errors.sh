@@ -36,6 +36,15 @@ rc=$?
 echo "bad --phantom: exit $rc: $(cat "$OUT/opt.err")"
 [ $rc -ne 0 ] && [ $rc -lt 128 ] && grep -q -- "--phantom" "$OUT/opt.err" || fail "bad --phantom"
 
+# 3b. HU window options out of range or not finite (nan, inf, a float overflow): refused with the range.
+for bad in "--level nan" "--level inf" "--level 1e39" "--level -40000" "--window nan" "--window 0" "--window 1e39"; do
+  env -u DISPLAY "$VIEWER" --phantom 16,16,16 $bad >"$OUT/win.out" 2>"$OUT/win.err"
+  rc=$?
+  echo "$bad: exit $rc: $(cat "$OUT/win.err")"
+  [ $rc -ne 0 ] && [ $rc -lt 128 ] || fail "$bad accepted (exit $rc)"
+  grep -qE -- "--(level|window): value .*(\[-32768, 32767\]|\(0, 65536\])" "$OUT/win.err" || fail "$bad: message does not give the range"
+done
+
 # 4. A display that cannot be opened (DISPLAY names no server).
 DISPLAY=:987 "$VIEWER" --phantom 16,16,16 --frames 1 --screenshot "$OUT/z.png" >"$OUT/bad.out" 2>"$OUT/bad.err"
 rc=$?
