@@ -7,22 +7,7 @@ set -u
 HPCM=$1 DATA=$2 OUT=$3
 rm -rf "$OUT" && mkdir -p "$OUT"
 cd "$OUT" || exit 1
-fail() { echo "FAIL: $*"; exit 1; }
-ok() { echo "ok: $*"; }
-
-# expect_error NAME PATTERN CMD...: exit 2, an stderr line "hpcm: error: ..." matching PATTERN
-# (notes, e.g. on --downsample, may come before it).
-expect_error() {
-  local name=$1 pattern=$2
-  shift 2
-  "$@" >"$name.out" 2>"$name.err"
-  local rc=$?
-  [ $rc -eq 2 ] || fail "$name: exit $rc (expected 2): $(head -3 "$name.err")"
-  local line
-  line=$(grep -m1 "^hpcm: error: " "$name.err") || fail "$name: no hpcm error line: $(head -3 "$name.err")"
-  echo "$line" | grep -qE -- "$pattern" || fail "$name: '$pattern' not in: $line"
-  ok "$name: $(echo "$line" | cut -c1-160)"
-}
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 
 # 1. phantom --params is validated even when only --out is written.
 printf '[dynamics]\nalpha = 1.5\n' >bad.toml

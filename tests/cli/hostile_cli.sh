@@ -9,20 +9,7 @@ set -u
 HPCM=$1 SRC=$2 DATA=$3 OUT=$4
 rm -rf "$OUT" && mkdir -p "$OUT"
 cd "$OUT" || exit 1
-fail() { echo "FAIL: $*"; exit 1; }
-ok() { echo "ok: $*"; }
-
-# expect_error NAME PATTERN CMD...: exit 2, first stderr line "hpcm: error: ..." matching PATTERN.
-expect_error() {
-  local name=$1 pattern=$2
-  shift 2
-  "$@" >"$name.out" 2>"$name.err"
-  local rc=$?
-  [ $rc -eq 2 ] || fail "$name: exit $rc (expected 2): $(head -3 "$name.err")"
-  head -1 "$name.err" | grep -q "^hpcm: error: " || fail "$name: first line is not hpcm's: $(head -3 "$name.err")"
-  head -1 "$name.err" | grep -qE -- "$pattern" || fail "$name: '$pattern' not in: $(head -1 "$name.err")"
-  ok "$name: $(head -1 "$name.err" | cut -c1-150)"
-}
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 
 # ---- 1. no shell ------------------------------------------------------------------------------
 # The tree has no system()/popen() call (helper programs start with an argument vector).

@@ -7,18 +7,7 @@ set -u
 HPCM=$1 OUT=$2
 rm -rf "$OUT" && mkdir -p "$OUT"
 cd "$OUT" || exit 1
-fail() { echo "FAIL: $*"; exit 1; }
-ok() { echo "ok: $*"; }
-expect_error() {
-  local name=$1 pattern=$2
-  shift 2
-  "$@" >"$name.out" 2>"$name.err"
-  local rc=$?
-  [ $rc -eq 2 ] || fail "$name: exit $rc (expected 2): $(head -3 "$name.err")"
-  head -1 "$name.err" | grep -q "^hpcm: error: " || fail "$name: first line is not hpcm's: $(head -3 "$name.err")"
-  grep -qE -- "$pattern" "$name.err" || fail "$name: '$pattern' not in: $(head -3 "$name.err")"
-  ok "$name: $(head -1 "$name.err" | cut -c1-160)"
-}
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 EXPORTS="displacement_final.nii.gz displacement_final.nrrd deformed_final.nii.gz labels.nii.gz labels.ctbl export.json"
 has_exports() {  # has_exports DIR: every export file is there
   for f in $EXPORTS; do [ -s "$1/$f" ] || return 1; done
