@@ -16,6 +16,16 @@ struct ParamsOptions {
   bool scenario_paper = false;
   bool print = false;
 };
+
+// Whether any offset or radius is in millimetres (their lattice range needs the input's spacing).
+bool uses_mm(const Scenario& s) {
+  for (const GrabAction& g : s.grabs) {
+    if (g.radius_units == Units::mm) return true;
+    for (const Keyframe& kf : g.path)
+      if (kf.units == Units::mm) return true;
+  }
+  return false;
+}
 }  // namespace
 
 void register_params(CLI::App& app) {
@@ -24,7 +34,8 @@ void register_params(CLI::App& app) {
   cmd->add_flag("--defaults", opt->defaults, "Print a complete, commented parameter file with every default");
   cmd->add_option("--check", opt->check, "Validate a parameter file (exit 2 with the reason when invalid)");
   cmd->add_option("--check-scenario", opt->check_scenario,
-                  "Validate a scenario file (syntax and values; grab positions are checked against the lattice at run time)");
+                  "Validate a scenario file (syntax and values; grab positions and millimetre offsets and radii are checked "
+                  "against the lattice at run time)");
   cmd->add_flag("--print", opt->print, "With --check / --check-scenario: print the full effective file");
   cmd->add_flag("--scenario-paper", opt->scenario_paper, "Print the paper-protocol scenario file (SPEC 7)");
   cmd->callback([opt]() {
@@ -46,8 +57,9 @@ void register_params(CLI::App& app) {
       if (opt->print)
         std::fputs(config::scenario_to_toml(s).c_str(), stdout);
       else
-        std::printf("%s: ok (scenario '%s', %d frames, %zu grab%s)\n", opt->check_scenario.c_str(), s.name.c_str(),
-                    s.frames, s.grabs.size(), s.grabs.size() == 1 ? "" : "s");
+        std::printf("%s: ok (scenario '%s', %d frames, %zu grab%s)%s\n", opt->check_scenario.c_str(), s.name.c_str(),
+                    s.frames, s.grabs.size(), s.grabs.size() == 1 ? "" : "s",
+                    uses_mm(s) ? "; millimetres are checked against the lattice spacing when the scenario is played" : "");
     } else {
       std::fputs("# The paper protocol (SPEC 7), expanded. A file holding only `paper = true` (or a [paper]\n"
                  "# table with distance, pull, hold, record) is the same; edit this one to vary it.\n",

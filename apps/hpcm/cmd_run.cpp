@@ -16,7 +16,8 @@ std::string frames_csv_header() {
   for (int t = 0; t < kTissueCount; ++t) h += std::string(",mean_speed_") + tissue_name(t);
   for (int t = 0; t < kTissueCount; ++t) h += std::string(",max_speed_") + tissue_name(t);
   h += ",inertia_ms,snapshot_ms,propagate_sweeps,relax_sweeps";
-  h += ",requested_offset,tool_limited,restored_links,restore_violation,min_cell_jacobian,folded_cells,active_elements\n";
+  h += ",requested_offset,tool_limited,restored_links,restore_violation,min_cell_jacobian,folded_cells,active_elements";
+  h += ",grab_offset_mm,requested_offset_mm\n";  // new columns go last: readers by position keep working
   return h;
 }
 
@@ -31,6 +32,8 @@ std::string frames_csv_row(const FrameReport& r) {
   require_finite(r.requested_offset, at + "requested_offset");
   require_finite(r.restore_violation, at + "restore_violation");
   require_finite(r.min_cell_jacobian, at + "min_cell_jacobian");
+  require_finite(r.grab_offset_mm, at + "grab_offset_mm");
+  require_finite(r.requested_offset_mm, at + "requested_offset_mm");
   for (int t = 0; t < kTissueCount; ++t) {
     require_finite(r.mean_speed[t], at + "mean_speed_" + tissue_name(t));
     require_finite(r.max_speed[t], at + "max_speed_" + tissue_name(t));
@@ -51,9 +54,10 @@ std::string frames_csv_row(const FrameReport& r) {
   }
   std::snprintf(buf, sizeof buf, ",%.6f,%.6f,%d,%d", r.inertia_ms, r.snapshot_ms, r.propagate_sweeps, r.relax_sweeps);
   s += buf;
-  std::snprintf(buf, sizeof buf, ",%.6g,%d,%lld,%.6g,%.6g,%lld,%lld\n", r.requested_offset, r.tool_limited ? 1 : 0,
+  std::snprintf(buf, sizeof buf, ",%.6g,%d,%lld,%.6g,%.6g,%lld,%lld,%.6g,%.6g\n", r.requested_offset, r.tool_limited ? 1 : 0,
                 static_cast<long long>(r.restored_links), r.restore_violation, r.min_cell_jacobian,
-                static_cast<long long>(r.folded_cells), static_cast<long long>(r.active_elements));
+                static_cast<long long>(r.folded_cells), static_cast<long long>(r.active_elements), r.grab_offset_mm,
+                r.requested_offset_mm);
   return s + buf;
 }
 

@@ -5,15 +5,7 @@
 
 namespace hpcm::cli {
 
-double offset_mm(const Model& m, Vec3 offset) {
-  double len2 = 0;
-  for (int r = 0; r < 3; ++r) {
-    double c = 0;
-    for (int a = 0; a < 3; ++a) c += m.direction[r * 3 + a] * m.spacing[a] * offset[a];
-    len2 += c * c;
-  }
-  return std::sqrt(len2);
-}
+double offset_mm(const Model& m, Vec3 offset) { return offset_length_mm(m, offset); }
 
 std::string limited_pull_text(const LimitedPull& p, const Model& m, const std::string& label) {
   const std::string frames = p.first_frame == p.last_frame

@@ -107,7 +107,7 @@ int main(int argc, char** argv) {
     s.model = build_model(v, s.params);
     if (s.scenario && !(s.scenario->name == "none" && s.scenario->grabs.empty())) {
       try {
-        s.scenario->validate(s.model);
+        s.scenario->in_lattice_units(s.model).validate(s.model);
       } catch (const Error& e) {
         throw Error("--scenario " + o.scenario + ": " + e.what());  // name the file, not only the grab
       }

@@ -24,6 +24,13 @@ double length_mm(Vec3 offset, const std::array<double, 3>& spacing) {
   return std::sqrt(s);
 }
 
+std::string tool_offset_text(Vec3 achieved, const std::array<double, 3>& spacing) {
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "offset (%.2f, %.2f, %.2f) = %.2f lattice units (%.2f mm)", double(achieved.x),
+                double(achieved.y), double(achieved.z), double(norm(achieved)), length_mm(achieved, spacing));
+  return buf;
+}
+
 std::string limited_pull_text(Vec3 achieved, Vec3 requested, const std::array<double, 3>& spacing) {
   char buf[512];
   std::snprintf(buf, sizeof buf,
@@ -188,7 +195,7 @@ void SimRunner::set_params(const Params& p) {
 
 void SimRunner::set_scenario(std::optional<Scenario> s) {
   post({false, [this, s] {
-          if (s) s->validate(sim_->model());  // throws: the old scenario stays
+          if (s) s->in_lattice_units(sim_->model()).validate(sim_->model());  // throws: the old scenario stays
           announce_limited_pull();
           scenario_ = s;
           sim_->reset();
@@ -399,7 +406,7 @@ void SimRunner::track_tool() {
       tool_.radius = sim_->params().solver.grab_radius;
       if (player_ && scenario_)
         for (std::size_t k = 0; k < scenario_->grabs.size(); ++k)
-          if (player_->centre_of(k) == c && scenario_->grabs[k].radius > 0) tool_.radius = scenario_->grabs[k].radius;
+          if (player_->centre_of(k) == c) tool_.radius = widest_grab_radius(scenario_->grabs[k], sim_->model(), tool_.radius);
       limit_ = {};
     }
     tool_.achieved = sim_->tool_offset();

@@ -97,6 +97,9 @@ bool materials_differ(const Params& a, const Params& b);
 /// Length in millimetres of an offset in lattice units (per-axis voxel spacing).
 double length_mm(Vec3 offset, const std::array<double, 3>& spacing);
 
+/// The pull achieved, for the panel: "offset (0.00, -6.00, 0.00) = 6.00 lattice units (37.50 mm)".
+std::string tool_offset_text(Vec3 achieved, const std::array<double, 3>& spacing);
+
 /// "pull limited: the tool moved 4.21 of the requested 6.00 lattice units (12.63 of 18.00 mm),
 /// 1.79 lattice units (5.37 mm) short: ...; achieved offset (...), requested (...)".
 std::string limited_pull_text(Vec3 achieved, Vec3 requested, const std::array<double, 3>& spacing);

@@ -187,7 +187,7 @@ void Viewer::panel_run_controls() {
   ImGui::Text("grab: %s", t.held ? "held" : "none");
   if (t.held) {
     ImGui::SameLine();
-    ImGui::Text("offset (%.2f, %.2f, %.2f)", double(t.achieved.x), double(t.achieved.y), double(t.achieved.z));
+    ImGui::TextUnformatted(tool_offset_text(t.achieved, model.spacing).c_str());
     if (t.limited)
       ImGui::TextColored(ImVec4(1, 0.6f, 0.15f, 1), "pull limited: asked (%.2f, %.2f, %.2f), %.2f lattice units (%.2f mm) short",
                          double(t.requested.x), double(t.requested.y), double(t.requested.z),

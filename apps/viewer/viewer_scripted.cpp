@@ -238,6 +238,7 @@ void Viewer::write_report(const std::string& path, int image_w, int image_h) con
     r << "tool_limited " << (tool.limited ? 1 : 0) << "\n";
     r << "tool_offset " << tool.achieved.x << " " << tool.achieved.y << " " << tool.achieved.z << "\n";
     r << "tool_requested " << tool.requested.x << " " << tool.requested.y << " " << tool.requested.z << "\n";
+    r << "tool_offset_mm " << length_mm(tool.achieved, m.spacing) << " " << length_mm(tool.requested, m.spacing) << "\n";
   }
   for (int p = 0; p < kPlaneCount; ++p) {
     const View& v = views_[p];

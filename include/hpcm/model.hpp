@@ -61,6 +61,12 @@ void rebuild_materials(Model& m, const Params& p);
 /// posteriorly to the first element with HU >= -500. Throws if the line has none.
 Index paper_grab_centre(const Model& m);
 
+/// Physical length (mm) of an offset in lattice units: spacing and direction of m.
+double offset_length_mm(const Model& m, Vec3 offset);
+/// An offset given in millimetres along the lattice axes (LPS) in lattice units: divided by
+/// m.spacing per axis.
+Vec3 lattice_offset_of_mm(const Model& m, Vec3 offset_mm);
+
 /// Fewest elements along every axis that a grab of `grab_radius` lattice units needs: the grab
 /// holds the 2 floor(r) + 1 elements around its centre along an axis, and the tissue needs a
 /// free, linked element on each side of them to deform at all: 2 floor(r) + 3 (5 at the

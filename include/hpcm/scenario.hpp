@@ -8,15 +8,25 @@
 
 namespace hpcm {
 
-/// Tool offset reached after `frame` frames of a grab (lattice units).
+/// Largest tool offset per axis, lattice units: beyond any lattice, and it keeps the
+/// interpolation between keyframes finite.
+inline constexpr float kMaxToolOffset = 10000.0f;
+
+/// Units of a scenario offset or grab radius: lattice units (element spacings) or millimetres
+/// along the lattice axes (LPS), converted with the lattice spacing per axis when played.
+enum class Units { lattice, mm };
+
+/// Tool offset reached after `frame` frames of a grab.
 struct Keyframe {
   int frame = 0;
   Vec3 offset{};
+  Units units = Units::lattice;
 };
 
 struct GrabAction {
   std::optional<Int3> centre;   ///< element coordinates; nullopt = "auto" (paper grab centre)
-  float radius = 0;             ///< <= 0: params.solver.grab_radius
+  float radius = 0;             ///< <= 0: params.solver.grab_radius (lattice units only)
+  Units radius_units = Units::lattice;  ///< mm: a sphere of `radius` mm (an ellipsoid on the lattice)
   int start = 0;                ///< scenario frame at which the grab begins
   std::vector<Keyframe> path;   ///< offset in relative frame r is path(r + 1), linear, held after the last key
   int release = 0;              ///< relative frame of release (first frame without the grab)
@@ -32,9 +42,17 @@ struct Scenario {
   static Scenario paper_protocol(float distance = 6.0f, int pull = 20, int hold = 10, int record = 120);
   /// Throws hpcm::Error when a grab is out of the lattice, overlaps another, or frames < 1.
   void validate(const Model& m) const;
+  /// A copy with every keyframe in lattice units (mm divided by m.spacing per axis); grab radii
+  /// keep their units (Simulation::grab_mm takes millimetres). Throws hpcm::Error naming the
+  /// keyframe when a converted offset is out of range [-kMaxToolOffset, kMaxToolOffset].
+  Scenario in_lattice_units(const Model& m) const;
   /// Frame of the last release (the first idle frame after it), or -1 without grabs.
   int last_release_frame() const;
 };
+
+/// The grab's largest radius along any lattice axis (lattice units); default_radius when it
+/// has none. For check_lattice_extent.
+float widest_grab_radius(const GrabAction& g, const Model& m, float default_radius);
 
 /// Tool offset of a grab action in relative frame r (linear between keyframes).
 Vec3 path_offset(const GrabAction& g, int r);

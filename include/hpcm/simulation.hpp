@@ -18,6 +18,8 @@ struct FrameReport {
   bool deform = false;          ///< deformation stage (a grab is held) or idle stage
   float grab_offset = 0;        ///< |tool offset| achieved, lattice units (0 when nothing is held)
   float requested_offset = 0;   ///< |tool offset| the input asked for
+  double grab_offset_mm = 0;       ///< grab_offset in millimetres (lattice spacing and direction)
+  double requested_offset_mm = 0;  ///< requested_offset in millimetres
   bool tool_limited = false;    ///< the tissue could not follow the tool this far: the pull was limited
   Index restored_links = 0;     ///< links the restoration found outside their box (then restored)
   float restore_violation = 0;  ///< the largest of those violations before restoring
@@ -32,6 +34,12 @@ struct FrameReport {
   double chainmail_ms = 0, inertia_ms = 0, snapshot_ms = 0, sim_total_ms = 0;
   PerTissue mean_speed{}, max_speed{};  ///< |X_end(t) - X_end(t-1)| per class
 };
+
+/// Largest grab radius, lattice units (along every axis for a radius in millimetres).
+inline constexpr float kMaxGrabRadius = 64.0f;
+
+/// Grab radius per lattice axis of a sphere of `radius_mm` millimetres.
+Vec3 grab_radii_of_mm(const Model& m, float radius_mm);
 
 struct StepOptions {
   bool speeds = true;               ///< reduce per-tissue speeds (costs a little)
@@ -57,6 +65,10 @@ class Simulation {
   /// Grabs every element within `radius` (lattice units, rest coordinates) of `centre`;
   /// radius <= 0 uses params.solver.grab_radius. Replaces any current grab.
   void grab(Index centre, float radius = 0);
+  /// The same with a radius in millimetres: the elements within radius_mm of the centre
+  /// (on an anisotropic lattice an ellipsoid of radius_mm / spacing per axis). radius_mm must
+  /// be finite, > 0 and at most kMaxGrabRadius lattice units along every axis.
+  void grab_mm(Index centre, float radius_mm);
   /// Moves the tool: grabbed elements go rigidly to (position at grab time + offset). An
   /// offset the tissue cannot follow (the links between the tool and the anchors or the
   /// boundary cannot stretch that far) is limited to the closest one it can: tool_offset()
@@ -91,6 +103,8 @@ class Simulation {
   }
 
  private:
+  /// Grabs the elements within the ellipsoid of these per-axis radii (lattice units).
+  void grab_within(Index centre, Vec3 radii);
   void push_fixed();
   void compute_anchors();
   void compute_tool_limit();

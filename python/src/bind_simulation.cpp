@@ -18,6 +18,8 @@ void for_each_frame_report_field(Visit&& v) {
   v("deform", &FrameReport::deform, "deformation stage (a grab is held); False: idle stage");
   v("grab_offset", &FrameReport::grab_offset, "|tool offset| achieved, lattice units (0 when nothing is held)");
   v("requested_offset", &FrameReport::requested_offset, "|tool offset| the input asked for, lattice units");
+  v("grab_offset_mm", &FrameReport::grab_offset_mm, "grab_offset in millimetres (lattice spacing and direction)");
+  v("requested_offset_mm", &FrameReport::requested_offset_mm, "requested_offset in millimetres");
   v("tool_limited", &FrameReport::tool_limited, "the tissue could not follow the tool this far: the pull was limited");
   v("restored_links", &FrameReport::restored_links, "links found outside their box at the end of the ChainMail stage (then restored)");
   v("restore_violation", &FrameReport::restore_violation, "the largest of those violations before restoring");
@@ -288,12 +290,24 @@ indexed [x, y, z] with x right->left, y anterior->posterior (anterior is -y), z 
           }, "tissue class per element (0 air .. 3 bone), (nx, ny, nz) uint8, read-only view (no copy)")
       .def("paper_grab_centre", [](const Simulation& s) { return int3_tuple(s.model().coords(paper_grab_centre(s.model()))); },
            "The paper's grab point: the anterior body surface on the central axial slice, x = nx/2.")
-      .def("grab", [](Simulation& s, py::handle centre, float radius) { s.grab(element_of(s, centre), radius); },
-           py::arg("centre") = "auto", py::arg("radius") = 0.0f,
-           "Grab every element within `radius` (lattice units; 0: solver.grab_radius) of `centre`: (x, y, z), "
-           "an element index, or \"auto\" (the paper's grab point).")
-      .def("move_tool", [](Simulation& s, py::handle offset) { s.move_tool(vec3_from(offset, "tool offset")); },
-           py::arg("offset"), "Move the grabbed elements to their grab positions + offset (lattice units).")
+      .def("grab", [](Simulation& s, py::handle centre, std::optional<float> radius, std::optional<float> radius_mm) {
+            if (radius && radius_mm) throw py::value_error("grab: give radius (lattice units) or radius_mm (millimetres), not both");
+            if (radius_mm) s.grab_mm(element_of(s, centre), *radius_mm);
+            else s.grab(element_of(s, centre), radius.value_or(0.0f));
+          },
+           py::arg("centre") = "auto", py::arg("radius") = py::none(), py::arg("radius_mm") = py::none(),
+           "Grab every element within `radius` (lattice units; 0 or neither: solver.grab_radius) or `radius_mm` "
+           "(millimetres, > 0; an ellipsoid on an anisotropic lattice) of `centre`: (x, y, z), an element index, "
+           "or \"auto\" (the paper's grab point).")
+      .def("move_tool", [](Simulation& s, py::handle offset, py::handle offset_mm) {
+            if (offset.is_none() == offset_mm.is_none())
+              throw py::value_error("move_tool: give offset (lattice units) or offset_mm (millimetres), exactly one");
+            if (!offset.is_none()) s.move_tool(vec3_from(offset, "tool offset"));
+            else s.move_tool(lattice_offset_of_mm(s.model(), vec3_from(offset_mm, "tool offset_mm")));
+          },
+           py::arg("offset") = py::none(), py::arg("offset_mm") = py::none(),
+           "Move the grabbed elements to their grab positions + offset: `offset` in lattice units or `offset_mm` "
+           "in millimetres along the lattice axes (LPS; divided by the lattice spacing per axis), exactly one.")
       .def("release", &Simulation::release)
       .def("step", [](Simulation& s, bool speeds, bool link_violation, bool cell_jacobian) {
             const StepOptions o = step_options(speeds, link_violation, cell_jacobian);

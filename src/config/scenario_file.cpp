@@ -16,10 +16,8 @@ using detail::Section;
 namespace {
 
 constexpr int kMaxFrames = 10'000'000;
-constexpr float kMaxRadius = 64.0f;
-// Tool offsets beyond any lattice are meaningless; the bound also keeps the interpolation
-// between keyframes and |offset| finite (two offsets near FLT_MAX would overflow).
-constexpr float kMaxOffset = 10000.0f;
+// Ranges in lattice units come from hpcm (kMaxGrabRadius, kMaxToolOffset): one definition each.
+std::string whole(float bound) { return std::to_string(static_cast<long long>(bound)); }
 
 std::string range_msg(const std::string& path, long long v, long long lo, long long hi) {
   return path + " = " + std::to_string(v) + " is out of range [" + std::to_string(lo) + ", " + std::to_string(hi) + "]";
@@ -60,6 +58,87 @@ Scenario read_paper(const Ctx& ctx, const toml::node& n) {
   }
 }
 
+// radius (lattice units, 0: default) or radius_mm (millimetres), not both.
+void read_radius(Section& s, const std::string& path, GrabAction& g) {
+  const Ctx& ctx = s.ctx();
+  const toml::node* lattice = s.get("radius");
+  const toml::node* mm = s.get("radius_mm");
+  if (lattice && mm)
+    fail(ctx, mm, path + " gives both radius and radius_mm: give one (radius in lattice units, radius_mm in millimetres)");
+  if (lattice) {
+    s.read("radius", g.radius);
+    if (!(g.radius >= 0.0f && g.radius <= kMaxGrabRadius))
+      fail(ctx, lattice,
+           path + ".radius = " + fmt_float(g.radius) + " is out of range [0, " + whole(kMaxGrabRadius) +
+               "] lattice units (0: solver.grab_radius)");
+  } else if (mm) {
+    const std::string out_of_range = path + ".radius_mm = " + detail::show(*mm) + " is out of range: > 0 mm and at most " +
+                                     whole(kMaxGrabRadius) +
+                                     " lattice units along every axis (checked against the lattice when the scenario is played)";
+    if (const auto* d = mm->as_floating_point(); d && !std::isfinite(d->get())) fail(ctx, mm, out_of_range);
+    g.radius = detail::to_float(ctx, *mm, path + ".radius_mm");
+    g.radius_units = Units::mm;
+    if (!(g.radius > 0.0f)) fail(ctx, mm, out_of_range);
+  }
+}
+
+// Tool offset, finite (to_float) and within kMaxToolOffset in lattice units; millimetres are only
+// finite here: their lattice range depends on the spacing and is checked when the scenario is played.
+Vec3 read_offset(const Ctx& ctx, const toml::node& at, const std::string& kp, const toml::node* const xyz[3],
+                 const char* const names[3], Units units) {
+  float d[3];
+  for (int a = 0; a < 3; ++a) {
+    const std::string ap = kp + names[a];
+    d[a] = detail::to_float(ctx, *xyz[a], ap);
+    if (units == Units::lattice && !(std::fabs(d[a]) <= kMaxToolOffset))
+      fail(ctx, &at, ap + " = " + fmt_float(d[a]) + " is out of range [-" + whole(kMaxToolOffset) + ", " + whole(kMaxToolOffset) +
+                         "] lattice units");
+  }
+  return {d[0], d[1], d[2]};
+}
+
+// A keyframe: [frame, dx, dy, dz] (lattice units) or { frame = N, offset = [dx, dy, dz] } /
+// { frame = N, offset_mm = [dx, dy, dz] } (exactly one of offset and offset_mm).
+Keyframe read_keyframe(const Ctx& ctx, const toml::node& e, const std::string& kp) {
+  Keyframe kf;
+  const toml::node* frame = nullptr;
+  if (const toml::array* a = e.as_array(); a && a->size() == 4) {
+    frame = a->get(0);
+    kf.frame = detail::to_int(ctx, *frame, kp + "[0] (frame)");
+    const toml::node* xyz[3] = {a->get(1), a->get(2), a->get(3)};
+    const char* const names[3] = {"[1] (dx)", "[2] (dy)", "[3] (dz)"};
+    kf.offset = read_offset(ctx, e, kp, xyz, names, Units::lattice);
+  } else if (const toml::table* t = e.as_table()) {
+    Section s(ctx, *t, kp);
+    frame = s.get("frame");
+    if (!frame) fail(ctx, &e, kp + ".frame is missing ({ frame = N, offset = [dx, dy, dz] } or offset_mm)");
+    kf.frame = detail::to_int(ctx, *frame, kp + ".frame");
+    const toml::node* lattice = s.get("offset");
+    const toml::node* mm = s.get("offset_mm");
+    s.finish();
+    if (lattice && mm)
+      fail(ctx, mm, kp + " gives both offset and offset_mm: give one (offset in lattice units, offset_mm in millimetres)");
+    if (!lattice && !mm)
+      fail(ctx, &e, kp + " needs offset = [dx, dy, dz] (lattice units) or offset_mm = [dx, dy, dz] (millimetres)");
+    kf.units = mm ? Units::mm : Units::lattice;
+    const toml::node& v = mm ? *mm : *lattice;
+    const std::string vp = kp + (mm ? ".offset_mm" : ".offset");
+    const toml::array* a = v.as_array();
+    if (!a || a->size() != 3)
+      fail(ctx, &v, vp + " must be [dx, dy, dz], got " + detail::type_phrase(v) + " " + detail::show(v));
+    const toml::node* xyz[3] = {a->get(0), a->get(1), a->get(2)};
+    const std::string n0 = vp.substr(kp.size()) + "[0]", n1 = vp.substr(kp.size()) + "[1]", n2 = vp.substr(kp.size()) + "[2]";
+    const char* const names[3] = {n0.c_str(), n1.c_str(), n2.c_str()};
+    kf.offset = read_offset(ctx, v, kp, xyz, names, kf.units);
+  } else {
+    fail(ctx, &e,
+         kp + " must be [frame, dx, dy, dz] or { frame = N, offset = [dx, dy, dz] } / { frame = N, offset_mm = [...] }, got " +
+             detail::type_phrase(e) + " " + detail::show(e));
+  }
+  if (kf.frame < 0 || kf.frame > kMaxFrames) fail(ctx, frame, range_msg(kp + " frame", kf.frame, 0, kMaxFrames));
+  return kf;
+}
+
 GrabAction read_grab(const Ctx& ctx, const toml::node& n, std::size_t k, int frames) {
   const std::string path = "grab[" + std::to_string(k) + "]";
   const toml::table* t = n.as_table();
@@ -85,10 +164,7 @@ GrabAction read_grab(const Ctx& ctx, const toml::node& n, std::size_t k, int fra
     }
   }
 
-  if (s.read("radius", g.radius) && !(g.radius >= 0.0f && g.radius <= kMaxRadius))
-    fail(ctx, s.get("radius"),
-         path + ".radius = " + fmt_float(g.radius) + " is out of range [0, 64] lattice units (0: solver.grab_radius)");
-
+  read_radius(s, path, g);
   g.start = read_int_in(s, "start", 0, frames - 1, false, 0, t);
   g.release = read_int_in(s, "release", 1, kMaxFrames, true, 0, t,
                           " (frames after the grab's start at which it is released, >= 1)");
@@ -97,21 +173,7 @@ GrabAction read_grab(const Ctx& ctx, const toml::node& n, std::size_t k, int fra
     for (std::size_t i = 0; i < kfs->size(); ++i) {
       const toml::node& e = *kfs->get(i);
       const std::string kp = path + ".keyframes[" + std::to_string(i) + "]";
-      const toml::array* a = e.as_array();
-      if (!a || a->size() != 4)
-        fail(ctx, &e, kp + " must be [frame, dx, dy, dz], got " + detail::type_phrase(e) + " " + detail::show(e));
-      Keyframe kf;
-      kf.frame = detail::to_int(ctx, *a->get(0), kp + "[0] (frame)");
-      kf.offset.x = detail::to_float(ctx, *a->get(1), kp + "[1] (dx)");
-      kf.offset.y = detail::to_float(ctx, *a->get(2), kp + "[2] (dy)");
-      kf.offset.z = detail::to_float(ctx, *a->get(3), kp + "[3] (dz)");
-      if (kf.frame < 0 || kf.frame > kMaxFrames) fail(ctx, &e, range_msg(kp + " frame", kf.frame, 0, kMaxFrames));
-      const char* axis[3] = {"dx", "dy", "dz"};
-      const float d[3] = {kf.offset.x, kf.offset.y, kf.offset.z};
-      for (int a = 0; a < 3; ++a)
-        if (!(std::fabs(d[a]) <= kMaxOffset))
-          fail(ctx, &e, kp + "[" + std::to_string(a + 1) + "] (" + axis[a] + ") = " + fmt_float(d[a]) +
-                            " is out of range [-10000, 10000] lattice units");
+      const Keyframe kf = read_keyframe(ctx, e, kp);
       if (!g.path.empty() && kf.frame <= g.path.back().frame)
         fail(ctx, &e,
              kp + " frame " + std::to_string(kf.frame) + " must be greater than the previous keyframe's frame " +
@@ -228,19 +290,25 @@ std::string scenario_to_toml(const Scenario& s) {
            "element coordinates, or \"auto\"");
     else
       line("centre = \"auto\"", "the paper's grab point: body surface along x = Nx/2, central slice");
-    line("radius = " + fmt_float(g.radius), "lattice units, [0, 64]; 0: solver.grab_radius");
+    if (g.radius_units == Units::mm)
+      line("radius_mm = " + fmt_float(g.radius), ("millimetres, > 0 (at most " + whole(kMaxGrabRadius) + " lattice units per axis)").c_str());
+    else
+      line("radius = " + fmt_float(g.radius), ("lattice units, [0, " + whole(kMaxGrabRadius) + "]; 0: solver.grab_radius").c_str());
     line("start = " + std::to_string(g.start), "scenario frame at which the grab begins");
     line("release = " + std::to_string(g.release), "frames after start at which it is released, >= 1");
-    o << "# [frame, dx, dy, dz]: tool offset reached `frame` frames after start; linear from 0 before\n"
+    o << "# [frame, dx, dy, dz] (lattice units) or { frame = N, offset_mm = [dx, dy, dz] } (millimetres):\n"
+         "# tool offset reached `frame` frames after start; linear from 0 before\n"
          "# the first key and between keys, held after the last; frames strictly increase.\n";
     o << "keyframes = [";
     if (g.path.empty()) {
       o << "]\n";
     } else {
       o << "\n";
-      for (const Keyframe& kf : g.path)
-        o << "  [" << kf.frame << ", " << fmt_float(kf.offset.x) << ", " << fmt_float(kf.offset.y) << ", "
-          << fmt_float(kf.offset.z) << "],\n";
+      for (const Keyframe& kf : g.path) {
+        const std::string xyz = fmt_float(kf.offset.x) + ", " + fmt_float(kf.offset.y) + ", " + fmt_float(kf.offset.z);
+        if (kf.units == Units::mm) o << "  { frame = " << kf.frame << ", offset_mm = [" << xyz << "] },\n";
+        else o << "  [" << kf.frame << ", " << xyz << "],\n";
+      }
       o << "]\n";
     }
   }

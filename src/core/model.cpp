@@ -97,6 +97,22 @@ Index paper_grab_centre(const Model& m) {
               ", z = " + std::to_string(z) + " (is there a body in the volume?)");
 }
 
+double offset_length_mm(const Model& m, Vec3 offset) {
+  double len2 = 0;
+  for (int r = 0; r < 3; ++r) {
+    double c = 0;
+    for (int a = 0; a < 3; ++a) c += m.direction[r * 3 + a] * m.spacing[a] * offset[a];
+    len2 += c * c;
+  }
+  return std::sqrt(len2);
+}
+
+Vec3 lattice_offset_of_mm(const Model& m, Vec3 offset_mm) {
+  Vec3 out;
+  for (int a = 0; a < 3; ++a) out[a] = static_cast<float>(offset_mm[a] / m.spacing[a]);
+  return out;
+}
+
 int min_lattice_extent(float grab_radius) { return 2 * static_cast<int>(std::floor(grab_radius)) + 3; }
 
 void check_lattice_extent(const Model& m, float grab_radius, const std::string& what) {

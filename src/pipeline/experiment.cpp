@@ -115,7 +115,10 @@ Check make_check(std::string name, std::string spec, bool holds, double value, d
 
 }  // namespace
 
-ExperimentResult run_experiment(const Model& model, const Params& params, const ExperimentOptions& opt) {
+ExperimentResult run_experiment(const Model& model, const Params& params, const ExperimentOptions& options) {
+  // Millimetre keyframes become lattice units once, here, for every condition.
+  ExperimentOptions opt = options;
+  opt.scenario = options.scenario.in_lattice_units(model);
   params.validate();
   opt.scenario.validate(model);
   if (opt.scenario.grabs.empty()) throw Error("experiment: the scenario has no grab");
@@ -126,7 +129,7 @@ ExperimentResult run_experiment(const Model& model, const Params& params, const 
   res.elements = model.size();
   const auto& g0 = opt.scenario.grabs.back();
   for (const GrabAction& g : opt.scenario.grabs)
-    check_lattice_extent(model, g.radius > 0 ? g.radius : params.solver.grab_radius, "experiment: the scenario's grab");
+    check_lattice_extent(model, widest_grab_radius(g, model, params.solver.grab_radius), "experiment: the scenario's grab");
   res.grab_centre = g0.centre ? model.index(g0.centre->x, g0.centre->y, g0.centre->z) : paper_grab_centre(model);
   res.release_frame = opt.scenario.last_release_frame();
   res.recorded_frames = opt.scenario.frames - res.release_frame;

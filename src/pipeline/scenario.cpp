@@ -1,8 +1,18 @@
 #include "hpcm/scenario.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 namespace hpcm {
+
+namespace {
+std::string number(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g", v);
+  return buf;
+}
+}  // namespace
 
 Scenario Scenario::paper_protocol(float distance, int pull, int hold, int record) {
   if (!(distance >= 0 && distance <= 1000) || pull < 1 || hold < 0 || record < 1)
@@ -16,6 +26,33 @@ Scenario Scenario::paper_protocol(float distance, int pull, int hold, int record
   s.grabs.push_back(g);
   s.frames = pull + hold + record;
   return s;
+}
+
+Scenario Scenario::in_lattice_units(const Model& m) const {
+  Scenario out = *this;
+  for (std::size_t k = 0; k < out.grabs.size(); ++k)
+    for (std::size_t j = 0; j < out.grabs[k].path.size(); ++j) {
+      Keyframe& kf = out.grabs[k].path[j];
+      if (kf.units != Units::mm) continue;
+      const Vec3 mm = kf.offset;
+      kf.offset = lattice_offset_of_mm(m, mm);
+      kf.units = Units::lattice;
+      if (!(std::fabs(kf.offset.x) <= kMaxToolOffset && std::fabs(kf.offset.y) <= kMaxToolOffset &&
+            std::fabs(kf.offset.z) <= kMaxToolOffset))
+        throw Error("scenario '" + name + "': grab[" + std::to_string(k) + "].keyframes[" + std::to_string(j) +
+                    "].offset_mm (" + number(mm.x) + ", " + number(mm.y) + ", " + number(mm.z) +
+                    ") mm is out of range: at most " + number(kMaxToolOffset) + " lattice units per axis (spacing " +
+                    number(m.spacing[0]) + " x " + number(m.spacing[1]) + " x " + number(m.spacing[2]) + " mm)");
+    }
+  return out;
+}
+
+float widest_grab_radius(const GrabAction& g, const Model& m, float default_radius) {
+  if (g.radius_units == Units::mm) {
+    const Vec3 r = grab_radii_of_mm(m, g.radius);
+    return std::max({r.x, r.y, r.z});
+  }
+  return g.radius > 0 ? g.radius : default_radius;
 }
 
 int Scenario::last_release_frame() const {
@@ -38,13 +75,23 @@ void Scenario::validate(const Model& m) const {
     }
     if (g.start < 0) throw Error(key + ".start must be >= 0");
     if (g.release < 1) throw Error(key + ".release must be >= 1");
-    if (!(g.radius >= 0 && g.radius <= 64)) throw Error(key + ".radius is out of range [0, 64] (0 = default)");
+    if (g.radius_units == Units::mm) {
+      const Vec3 r = grab_radii_of_mm(m, g.radius);
+      if (!(g.radius > 0) || !(std::max({r.x, r.y, r.z}) <= kMaxGrabRadius))
+        throw Error(key + ".radius_mm = " + number(g.radius) + " is out of range: > 0 mm and at most " +
+                    number(kMaxGrabRadius) + " lattice units along every axis (" +
+                    number(kMaxGrabRadius * std::min({m.spacing[0], m.spacing[1], m.spacing[2]})) + " mm on this lattice)");
+    } else if (!(g.radius >= 0 && g.radius <= kMaxGrabRadius)) {
+      throw Error(key + ".radius is out of range [0, " + number(kMaxGrabRadius) + "] lattice units (0 = default)");
+    }
     for (std::size_t j = 0; j < g.path.size(); ++j) {
       const auto& kf = g.path[j];
       if (kf.frame < 0 || (j > 0 && kf.frame <= g.path[j - 1].frame))
         throw Error(key + ".keyframes[" + std::to_string(j) + "]: frames must be >= 0 and strictly increasing");
-      if (!std::isfinite(kf.offset.x) || !std::isfinite(kf.offset.y) || !std::isfinite(kf.offset.z))
-        throw Error(key + ".keyframes[" + std::to_string(j) + "]: offset must be finite");
+      if (!(std::fabs(kf.offset.x) <= kMaxToolOffset && std::fabs(kf.offset.y) <= kMaxToolOffset &&
+            std::fabs(kf.offset.z) <= kMaxToolOffset))
+        throw Error(key + ".keyframes[" + std::to_string(j) + "]: offset must be finite and within [-" + number(kMaxToolOffset) +
+                    ", " + number(kMaxToolOffset) + "] lattice units per axis");
     }
     for (std::size_t j = 0; j < k; ++j) {
       const auto& o = grabs[j];
@@ -71,11 +118,11 @@ Vec3 path_offset(const GrabAction& g, int r) {
   return g.path.back().offset;
 }
 
-ScenarioPlayer::ScenarioPlayer(const Scenario& s, Simulation& sim) : scenario_(s), sim_(sim) {
+ScenarioPlayer::ScenarioPlayer(const Scenario& s, Simulation& sim) : scenario_(s.in_lattice_units(sim.model())), sim_(sim) {
   scenario_.validate(sim.model());
   for (std::size_t k = 0; k < scenario_.grabs.size(); ++k) {
     const GrabAction& g = scenario_.grabs[k];
-    check_lattice_extent(sim.model(), g.radius > 0 ? g.radius : sim.params().solver.grab_radius,
+    check_lattice_extent(sim.model(), widest_grab_radius(g, sim.model(), sim.params().solver.grab_radius),
                          "scenario '" + scenario_.name + "': grab[" + std::to_string(k) + "]");
   }
   for (const auto& g : scenario_.grabs)
@@ -130,7 +177,10 @@ std::optional<LimitedPull> LimitedPullTracker::finish() {
 FrameReport ScenarioPlayer::step(const StepOptions& opt) {
   for (std::size_t k = 0; k < scenario_.grabs.size(); ++k) {
     const auto& g = scenario_.grabs[k];
-    if (frame_ == g.start) sim_.grab(centres_[k], g.radius);
+    if (frame_ == g.start) {
+      if (g.radius_units == Units::mm) sim_.grab_mm(centres_[k], g.radius);
+      else sim_.grab(centres_[k], g.radius);
+    }
     if (frame_ >= g.start && frame_ < g.start + g.release) sim_.move_tool(path_offset(g, frame_ - g.start));
     if (frame_ == g.start + g.release) sim_.release();
   }

@@ -1,12 +1,23 @@
 #include "hpcm/simulation.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <string>
 #include <memory>
 #include <utility>
 
 #include "solver/tool_limit.hpp"
 
 namespace hpcm {
+
+namespace {
+std::string fmt_number(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g", v);
+  return buf;
+}
+}  // namespace
 
 Simulation::Simulation(Model model, Params params, BackendKind backend)
     : Simulation(std::move(model), std::move(params), make_backend(backend)) {}
@@ -95,20 +106,42 @@ void Simulation::compute_tool_limit() {
 Vec3 Simulation::tool_limit_lo() const { return tool_limit_ ? tool_limit_->limit().lo : Vec3{}; }
 Vec3 Simulation::tool_limit_hi() const { return tool_limit_ ? tool_limit_->limit().hi : Vec3{}; }
 
+Vec3 grab_radii_of_mm(const Model& m, float radius_mm) {
+  return {static_cast<float>(radius_mm / m.spacing[0]), static_cast<float>(radius_mm / m.spacing[1]),
+          static_cast<float>(radius_mm / m.spacing[2])};
+}
+
 void Simulation::grab(Index centre, float radius) {
+  const float r = radius > 0 ? radius : params_.solver.grab_radius;
+  if (!(r <= kMaxGrabRadius))
+    throw Error("grab radius " + std::to_string(r) + " is out of range (0, " + fmt_number(kMaxGrabRadius) + "] lattice units");
+  grab_within(centre, {r, r, r});
+}
+
+void Simulation::grab_mm(Index centre, float radius_mm) {
+  const Vec3 r = grab_radii_of_mm(model_, radius_mm);
+  const float widest = std::max({r.x, r.y, r.z});
+  if (!(radius_mm > 0) || !(widest <= kMaxGrabRadius))
+    throw Error("grab radius_mm = " + fmt_number(radius_mm) + " is out of range: it must be > 0 mm and at most " +
+                fmt_number(kMaxGrabRadius) + " lattice units along every axis (here " +
+                fmt_number(kMaxGrabRadius * static_cast<float>(std::min({model_.spacing[0], model_.spacing[1], model_.spacing[2]}))) +
+                " mm)");
+  grab_within(centre, r);
+}
+
+void Simulation::grab_within(Index centre, Vec3 radii) {
   if (centre < 0 || centre >= model_.size())
     throw Error("grab centre index " + std::to_string(centre) + " is out of range [0, " + std::to_string(model_.size() - 1) + "]");
-  const float r = radius > 0 ? radius : params_.solver.grab_radius;
-  if (!(r <= 64.0f)) throw Error("grab radius " + std::to_string(r) + " is out of range (0, 64]");
   grabbed_.clear();
   grab_origin_.clear();
   const Int3 c = model_.coords(centre);
-  const int R = static_cast<int>(std::floor(r));
-  for (int z = std::max(0, c.z - R); z <= std::min(model_.dims.z - 1, c.z + R); ++z)
-    for (int y = std::max(0, c.y - R); y <= std::min(model_.dims.y - 1, c.y + R); ++y)
-      for (int x = std::max(0, c.x - R); x <= std::min(model_.dims.x - 1, c.x + R); ++x) {
-        const float dx = float(x - c.x), dy = float(y - c.y), dz = float(z - c.z);
-        if (dx * dx + dy * dy + dz * dz <= r * r) {
+  const Int3 R{static_cast<int>(std::floor(radii.x)), static_cast<int>(std::floor(radii.y)), static_cast<int>(std::floor(radii.z))};
+  for (int z = std::max(0, c.z - R.z); z <= std::min(model_.dims.z - 1, c.z + R.z); ++z)
+    for (int y = std::max(0, c.y - R.y); y <= std::min(model_.dims.y - 1, c.y + R.y); ++y)
+      for (int x = std::max(0, c.x - R.x); x <= std::min(model_.dims.x - 1, c.x + R.x); ++x) {
+        // (d / r)^2 summed <= 1: a sphere when the radii are equal.
+        const float ux = float(x - c.x) / radii.x, uy = float(y - c.y) / radii.y, uz = float(z - c.z) / radii.z;
+        if (ux * ux + uy * uy + uz * uz <= 1.0f) {
           const Index i = model_.index(x, y, z);
           grabbed_.push_back(i);
           grab_origin_.push_back(backend_->position(i));
@@ -162,6 +195,8 @@ FrameReport Simulation::step(const StepOptions& opt) {
   r.deform = grabbing();
   r.grab_offset = r.deform ? norm(tool_offset_) : 0.0f;
   r.requested_offset = r.deform ? norm(requested_offset_) : 0.0f;
+  r.grab_offset_mm = r.deform ? offset_length_mm(model_, tool_offset_) : 0.0;
+  r.requested_offset_mm = r.deform ? offset_length_mm(model_, requested_offset_) : 0.0;
   r.tool_limited = r.deform && tool_limited();
   Backend& b = *backend_;
   b.mark(0);

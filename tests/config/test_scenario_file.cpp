@@ -20,12 +20,14 @@ void expect_scenario_eq(const Scenario& a, const Scenario& b) {
     EXPECT_EQ(g.centre.has_value(), h.centre.has_value()) << "grab " << k;
     if (g.centre && h.centre) EXPECT_TRUE(*g.centre == *h.centre) << "grab " << k;
     EXPECT_EQ(g.radius, h.radius) << "grab " << k;
+    EXPECT_EQ(g.radius_units, h.radius_units) << "grab " << k;
     EXPECT_EQ(g.start, h.start) << "grab " << k;
     EXPECT_EQ(g.release, h.release) << "grab " << k;
     ASSERT_EQ(g.path.size(), h.path.size()) << "grab " << k;
     for (std::size_t i = 0; i < g.path.size(); ++i) {
       EXPECT_EQ(g.path[i].frame, h.path[i].frame) << "grab " << k << " key " << i;
       EXPECT_TRUE(g.path[i].offset == h.path[i].offset) << "grab " << k << " key " << i;
+      EXPECT_EQ(g.path[i].units, h.path[i].units) << "grab " << k << " key " << i;
     }
   }
 }
@@ -152,6 +154,29 @@ TEST(ScenarioFile, Errors) {
       {"[paper]\nfrom = 3\n", "unknown key 'paper.from'"},
       {"[scenario]\nframes = 10\nscenario = 3\n", "unknown key 'scenario.scenario'"},
       {"[scenario\nframes = 10\n", "TOML syntax error"},
+      // Millimetres beside lattice units: exactly one form per grab radius and per keyframe.
+      {grab + "release = 5\nradius = 2\nradius_mm = 5\n",
+       "grab[0] gives both radius and radius_mm: give one (radius in lattice units, radius_mm in millimetres) (line 6)"},
+      {grab + "release = 5\nradius_mm = -1\n", "grab[0].radius_mm = -1 is out of range: > 0 mm and at most 64 lattice units"},
+      {grab + "release = 5\nradius_mm = nan\n", "grab[0].radius_mm = nan is out of range: > 0 mm and at most 64 lattice units"},
+      {grab + "release = 5\nradius_mm = 0\n", "grab[0].radius_mm = 0 is out of range: > 0 mm"},
+      {grab + "release = 5\nradius_mm = \"5mm\"\n", "grab[0].radius_mm must be a number"},
+      {grab + "release = 5\nkeyframes = [{ frame = 10, offset = [0, -1, 0], offset_mm = [0, -5, 0] }]\n",
+       "grab[0].keyframes[0] gives both offset and offset_mm: give one (offset in lattice units, offset_mm in millimetres) "
+       "(line 5)"},
+      {grab + "release = 5\nkeyframes = [{ frame = 10 }]\n",
+       "grab[0].keyframes[0] needs offset = [dx, dy, dz] (lattice units) or offset_mm = [dx, dy, dz] (millimetres)"},
+      {grab + "release = 5\nkeyframes = [{ offset_mm = [0, -5, 0] }]\n", "grab[0].keyframes[0].frame is missing"},
+      {grab + "release = 5\nkeyframes = [{ frame = 10, offset_mm = [0, -5] }]\n",
+       "grab[0].keyframes[0].offset_mm must be [dx, dy, dz]"},
+      {grab + "release = 5\nkeyframes = [{ frame = 10, offset_mm = [0, nan, 0] }]\n",
+       "grab[0].keyframes[0].offset_mm[1] = nan is not a finite number"},
+      {grab + "release = 5\nkeyframes = [{ frame = 10, offset = [0, -20000, 0] }]\n",
+       "grab[0].keyframes[0].offset[1] = -20000.0 is out of range [-10000, 10000] lattice units"},
+      {grab + "release = 5\nkeyframes = [{ frame = 10, offset_mm = [0, -5, 0], speed = 2 }]\n",
+       "unknown key 'grab[0].keyframes[0].speed'"},
+      {grab + "release = 5\nkeyframes = [{ frame = -1, offset_mm = [0, -5, 0] }]\n",
+       "grab[0].keyframes[0] frame = -1 is out of range [0, "},
   };
   for (const auto& c : cases) {
     const std::string msg = error_of(c.text);
@@ -159,6 +184,41 @@ TEST(ScenarioFile, Errors) {
     EXPECT_EQ(msg.rfind("scn.toml: ", 0), 0u) << msg;
     EXPECT_CONTAINS(msg, c.want);
   }
+}
+
+// Keyframes and grab radii in millimetres beside lattice units; kept as written (converted with
+// the lattice spacing only when played) and written back in the same form.
+TEST(ScenarioFile, MillimetreForms) {
+  const Scenario s = cfg::parse_scenario(R"(
+[scenario]
+frames = 60
+[[grab]]
+radius_mm = 7.5
+release = 40
+keyframes = [
+  [5, 0, -1, 0],
+  { frame = 10, offset = [0, -2, 0] },
+  { frame = 20, offset_mm = [1.5, -18, 0.25] },
+]
+)", "mm.toml");
+  ASSERT_EQ(s.grabs.size(), 1u);
+  const hpcm::GrabAction& g = s.grabs[0];
+  EXPECT_EQ(g.radius_units, hpcm::Units::mm);
+  EXPECT_FLOAT_EQ(g.radius, 7.5f);
+  ASSERT_EQ(g.path.size(), 3u);
+  EXPECT_EQ(g.path[0].units, hpcm::Units::lattice);
+  EXPECT_EQ(g.path[1].units, hpcm::Units::lattice);
+  EXPECT_TRUE(g.path[1].offset == (hpcm::Vec3{0, -2, 0}));
+  EXPECT_EQ(g.path[2].frame, 20);
+  EXPECT_EQ(g.path[2].units, hpcm::Units::mm);
+  EXPECT_TRUE(g.path[2].offset == (hpcm::Vec3{1.5f, -18, 0.25f}));
+  const std::string text = cfg::scenario_to_toml(s);
+  EXPECT_CONTAINS(text, "radius_mm = 7.5");
+  EXPECT_CONTAINS(text, "{ frame = 20, offset_mm = [1.5, -18.0, 0.25] }");
+  expect_scenario_eq(cfg::parse_scenario(text, "rt.toml"), s);
+  // A radius in lattice units stays one.
+  const Scenario lattice = cfg::parse_scenario("[scenario]\nframes = 5\n[[grab]]\nradius = 2\nrelease = 3\n", "l.toml");
+  EXPECT_EQ(lattice.grabs[0].radius_units, hpcm::Units::lattice);
 }
 
 TEST(ScenarioFile, NoGrabsIsAnIdleScenario) {

@@ -278,6 +278,11 @@ TEST(ViewerRateMeter, CountsFramesOverItsWindow) {
   EXPECT_NEAR(m.rate(), 10.0, 1e-9);
 }
 
+TEST(ViewerSimRunner, ToolOffsetTextGivesThePullInLatticeUnitsAndMillimetres) {
+  const std::string t = tool_offset_text({3.0f, -4.0f, 0}, {0.5, 2.0, 1.0});
+  EXPECT_EQ(t, "offset (3.00, -4.00, 0.00) = 5.00 lattice units (8.14 mm)");
+}
+
 TEST(ViewerSimRunner, LimitedPullTextNamesBothOffsetsInLatticeUnitsAndMillimetres) {
   const std::string t = limited_pull_text({0, -3.0f, 0}, {0, -8.0f, 0}, {0.5, 2.0, 1.0});
   EXPECT_NE(t.find("pull limited"), std::string::npos) << t;
