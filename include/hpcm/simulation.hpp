@@ -3,6 +3,7 @@
 //   X- <- X;  deform stage (targets, propagate, relax K) while a grab is held, else idle
 //   stage (relax K only, never propagate);  velocity layer -> X_{t+1}; boundary clamp.
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "hpcm/backend_factory.hpp"
@@ -33,6 +34,12 @@ struct FrameReport {
   PerTissue mean_speed{}, max_speed{};  ///< |X_end(t) - X_end(t-1)| per class
 };
 
+/// Largest radius a grab may be given, lattice units (scenario files, Simulation::grab, Python).
+inline constexpr float kMaxGrabRadius = 64.0f;
+/// The rule for a radius given with a grab: [0, kMaxGrabRadius], 0 meaning
+/// params.solver.grab_radius. Anything else (negative, NaN, larger) throws Error naming `what`.
+void check_grab_radius(float radius, const std::string& what);
+
 struct StepOptions {
   bool speeds = true;               ///< reduce per-tissue speeds (costs a little)
   bool link_violation = false;      ///< measure max link violation over all links (O(N))
@@ -55,7 +62,7 @@ class Simulation {
 
   // --- grab tool (SPEC §4) ---
   /// Grabs every element within `radius` (lattice units, rest coordinates) of `centre`;
-  /// radius <= 0 uses params.solver.grab_radius. Replaces any current grab.
+  /// radius 0 uses params.solver.grab_radius (check_grab_radius). Replaces any current grab.
   void grab(Index centre, float radius = 0);
   /// Moves the tool: grabbed elements go rigidly to (position at grab time + offset). An
   /// offset the tissue cannot follow (the links between the tool and the anchors or the

@@ -16,7 +16,7 @@ using detail::Section;
 namespace {
 
 constexpr int kMaxFrames = 10'000'000;
-constexpr float kMaxRadius = 64.0f;
+constexpr float kMaxRadius = kMaxGrabRadius;  // Simulation's rule for a grab radius
 // Tool offsets beyond any lattice are meaningless; the bound also keeps the interpolation
 // between keyframes and |offset| finite (two offsets near FLT_MAX would overflow).
 constexpr float kMaxOffset = 10000.0f;

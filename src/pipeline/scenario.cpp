@@ -38,7 +38,7 @@ void Scenario::validate(const Model& m) const {
     }
     if (g.start < 0) throw Error(key + ".start must be >= 0");
     if (g.release < 1) throw Error(key + ".release must be >= 1");
-    if (!(g.radius >= 0 && g.radius <= 64)) throw Error(key + ".radius is out of range [0, 64] (0 = default)");
+    check_grab_radius(g.radius, key + ".radius");
     for (std::size_t j = 0; j < g.path.size(); ++j) {
       const auto& kf = g.path[j];
       if (kf.frame < 0 || (j > 0 && kf.frame <= g.path[j - 1].frame))

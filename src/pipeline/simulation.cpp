@@ -2,11 +2,20 @@
 
 #include <cmath>
 #include <memory>
+#include <sstream>
 #include <utility>
 
 #include "solver/tool_limit.hpp"
 
 namespace hpcm {
+
+void check_grab_radius(float radius, const std::string& what) {
+  if (radius >= 0.0f && radius <= kMaxGrabRadius) return;
+  std::ostringstream msg;
+  msg << what << " = " << radius << " is out of range [0, " << kMaxGrabRadius
+      << "] lattice units (0: solver.grab_radius)";
+  throw Error(msg.str());
+}
 
 Simulation::Simulation(Model model, Params params, BackendKind backend)
     : Simulation(std::move(model), std::move(params), make_backend(backend)) {}
@@ -98,8 +107,9 @@ Vec3 Simulation::tool_limit_hi() const { return tool_limit_ ? tool_limit_->limit
 void Simulation::grab(Index centre, float radius) {
   if (centre < 0 || centre >= model_.size())
     throw Error("grab centre index " + std::to_string(centre) + " is out of range [0, " + std::to_string(model_.size() - 1) + "]");
+  // Before the default is used: a negative or NaN radius must not silently become the default.
+  check_grab_radius(radius, "grab radius");
   const float r = radius > 0 ? radius : params_.solver.grab_radius;
-  if (!(r <= 64.0f)) throw Error("grab radius " + std::to_string(r) + " is out of range (0, 64]");
   grabbed_.clear();
   grab_origin_.clear();
   const Int3 c = model_.coords(centre);
