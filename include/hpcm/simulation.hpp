@@ -3,6 +3,7 @@
 //   X- <- X;  deform stage (targets, propagate, relax K) while a grab is held, else idle
 //   stage (relax K only, never propagate);  velocity layer -> X_{t+1}; boundary clamp.
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "hpcm/backend_factory.hpp"
@@ -40,6 +41,9 @@ inline constexpr float kMaxGrabRadius = 64.0f;
 
 /// Grab radius per lattice axis of a sphere of `radius_mm` millimetres.
 Vec3 grab_radii_of_mm(const Model& m, float radius_mm);
+/// The rule for a radius given with a grab: [0, kMaxGrabRadius], 0 meaning
+/// params.solver.grab_radius. Anything else (negative, NaN, larger) throws Error naming `what`.
+void check_grab_radius(float radius, const std::string& what);
 
 struct StepOptions {
   bool speeds = true;               ///< reduce per-tissue speeds (costs a little)
@@ -63,7 +67,7 @@ class Simulation {
 
   // --- grab tool (SPEC §4) ---
   /// Grabs every element within `radius` (lattice units, rest coordinates) of `centre`;
-  /// radius <= 0 uses params.solver.grab_radius. Replaces any current grab.
+  /// radius 0 uses params.solver.grab_radius (check_grab_radius). Replaces any current grab.
   void grab(Index centre, float radius = 0);
   /// The same with a radius in millimetres: the elements within radius_mm of the centre
   /// (on an anisotropic lattice an ellipsoid of radius_mm / spacing per axis). radius_mm must

@@ -36,6 +36,7 @@ py::dict grid_dict(const io::Grid& g) {
   return d;
 }
 
+// Called in the simulation's turn (SimulationTurn): another thread may be stepping it.
 const std::vector<Vec3>& positions_of(Simulation& sim) { return sim.state().pos; }
 
 }  // namespace
@@ -101,23 +102,30 @@ order: {"axis", "reversed"}: LPS axis p runs along stored axis axis[p], backward
         return out;
       }, py::arg("directory"));
 
-  m.def("displacement_mm", [](const io::Input& in, Simulation& sim) {
+  // The exports read a simulation that other Python threads may be stepping: each takes the
+  // simulation's turn. They keep the GIL while they compute.
+  m.def("displacement_mm", [](const io::Input& in, GuardedSimulation& sim) {
+        SimulationTurn turn(sim);
         std::vector<float> u = io::displacement_on_input_grid(in, sim.model(), positions_of(sim));
         return lattice_array(std::move(u), in.lattice_grid.dims, 3);
       }, py::arg("input"), py::arg("simulation"),
       "Forward displacement X - X0 in millimetres (LPS components) on input.lattice_grid, indexed in the "
       "input's own order: exactly what write_displacement_field writes.");
-  m.def("write_displacement_field", [](const io::Input& in, Simulation& sim, const std::string& path) {
+  m.def("write_displacement_field", [](const io::Input& in, GuardedSimulation& sim, const std::string& path) {
+        SimulationTurn turn(sim);
         io::write_displacement_field(in, sim.model(), positions_of(sim), path);
       }, py::arg("input"), py::arg("simulation"), py::arg("path"));
-  m.def("write_label_map", [](const io::Input& in, Simulation& sim, const std::string& path) {
+  m.def("write_label_map", [](const io::Input& in, GuardedSimulation& sim, const std::string& path) {
+        SimulationTurn turn(sim);
         io::write_label_map(in, sim.model(), path);
       }, py::arg("input"), py::arg("simulation"), py::arg("path"));
-  m.def("write_deformed_volume", [](const io::Input& in, Simulation& sim, const std::string& path) {
+  m.def("write_deformed_volume", [](const io::Input& in, GuardedSimulation& sim, const std::string& path) {
+        SimulationTurn turn(sim);
         io::write_deformed_volume(in, sim.model(), positions_of(sim), path);
       }, py::arg("input"), py::arg("simulation"), py::arg("path"));
-  m.def("export_frame", [](const io::Input& in, Simulation& sim, const std::string& folder, const std::string& tag,
+  m.def("export_frame", [](const io::Input& in, GuardedSimulation& sim, const std::string& folder, const std::string& tag,
                            bool nrrd_field) {
+        SimulationTurn turn(sim);
         const io::ExportFiles f = io::export_frame(in, sim.model(), positions_of(sim), folder, tag, nrrd_field);
         py::dict d;
         d["displacement_nifti"] = f.displacement_nifti;

@@ -1,7 +1,11 @@
 // Simulation (grab / move / release / step), its per-frame reports, ScenarioPlayer and the
 // paper's experiment. Lattice arrays are indexed [x, y, z] in the lattice's LPS order.
+#include <cmath>
+#include <array>
 #include <cstring>
+#include <sstream>
 #include <string>
+#include <variant>
 
 #include "bindings.hpp"
 #include "hpcm/experiment.hpp"
@@ -88,20 +92,82 @@ struct StateSnapshot {
   Int3 dims;
 };
 
-Index element_of(const Simulation& sim, py::handle centre) {
-  const Model& m = sim.model();
-  if (py::isinstance<py::str>(centre)) {
-    if (centre.cast<std::string>() != "auto") throw Error("grab centre '" + centre.cast<std::string>() + "': give (x, y, z), an element index or \"auto\"");
-    return paper_grab_centre(m);
+std::string repr_of(py::handle v) { return py::repr(v).cast<std::string>(); }
+
+/// A numpy array (not a 0-d one) or another sequence that is not a string.
+bool is_sequence(py::handle v) {
+  if (py::isinstance<py::str>(v) || py::isinstance<py::bytes>(v)) return false;
+  if (py::isinstance<py::array>(v)) return py::reinterpret_borrow<py::array>(v).ndim() > 0;
+  return PySequence_Check(v.ptr()) == 1;
+}
+
+/// A Python number (int, float, numpy scalar) as a double; Error "<what> = <value>: <expected>"
+/// for anything else, instead of pybind11's "Unable to cast".
+double number_of(py::handle v, const std::string& what, const std::string& expected) {
+  if (!is_sequence(v) && !py::isinstance<py::str>(v) && PyNumber_Check(v.ptr())) {
+    const double d = PyFloat_AsDouble(v.ptr());
+    if (!(d == -1.0 && PyErr_Occurred())) return d;
+    PyErr_Clear();
   }
-  if (py::isinstance<py::int_>(centre)) return centre.cast<Index>();
-  const auto c = centre.cast<std::vector<long long>>();
-  if (c.size() != 3) throw Error("grab centre must be (x, y, z) lattice coordinates, an element index or \"auto\"");
+  throw Error(what + " = " + repr_of(v) + ": " + expected);
+}
+
+/// The items of a sequence of `n` numbers, or Error naming `what` and what is expected.
+std::vector<double> numbers_of(py::handle v, std::size_t n, const std::string& what, const std::string& item,
+                               const std::string& expected) {
+  if (!is_sequence(v)) throw Error(what + " " + repr_of(v) + ": " + expected);
+  const auto seq = py::reinterpret_borrow<py::sequence>(v);
+  if (seq.size() != n) throw Error(what + " " + repr_of(v) + ": " + expected);
+  std::vector<double> out;
+  for (std::size_t k = 0; k < n; ++k) out.push_back(number_of(seq[k], item + " " + std::to_string(k), expected));
+  return out;
+}
+
+constexpr const char* kCentreForms = "give (x, y, z) as 3 whole numbers (an element's lattice coordinates), an element index or \"auto\"";
+
+/// A grab centre as Python gives it, converted (with the GIL, outside the simulation's turn):
+/// "auto", an element index, or element coordinates (x, y, z).
+using CentreArg = std::variant<std::monostate, double, std::array<double, 3>>;
+
+CentreArg centre_arg(py::handle centre) {
+  if (py::isinstance<py::str>(centre)) {
+    if (centre.cast<std::string>() != "auto") throw Error("grab centre '" + centre.cast<std::string>() + "': " + kCentreForms);
+    return std::monostate{};
+  }
+  if (!is_sequence(centre)) return number_of(centre, "grab centre", kCentreForms);
+  const auto c = numbers_of(centre, 3, "grab centre", "grab centre coordinate", kCentreForms);
+  return std::array<double, 3>{c[0], c[1], c[2]};
+}
+
+/// Elements are addressed by whole numbers: the grab is centred on an element (docs/python.md).
+void check_whole(double v, const std::string& what, const std::string& shown) {
+  if (!std::isfinite(v) || v != std::floor(v))
+    throw Error(what + " = " + shown + ": lattice coordinates and element indices are whole numbers (the grab is centred on an element)");
+}
+
+std::string number_text(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
+Index element_of(const Model& m, const CentreArg& centre) {
+  if (std::holds_alternative<std::monostate>(centre)) return paper_grab_centre(m);
+  if (const double* index = std::get_if<double>(&centre)) {
+    check_whole(*index, "grab centre index", number_text(*index));
+    if (!(*index >= 0 && *index < double(m.size())))
+      throw Error("grab centre index " + number_text(*index) + " is out of range [0, " + std::to_string(m.size() - 1) + "]");
+    return static_cast<Index>(*index);
+  }
+  const auto& c = std::get<std::array<double, 3>>(centre);
   const int d[3] = {m.dims.x, m.dims.y, m.dims.z};
-  for (int a = 0; a < 3; ++a)
-    if (c[static_cast<std::size_t>(a)] < 0 || c[static_cast<std::size_t>(a)] >= d[a])
-      throw Error("grab centre coordinate " + std::to_string(a) + " = " + std::to_string(c[static_cast<std::size_t>(a)]) +
-                  " is out of range [0, " + std::to_string(d[a] - 1) + "]");
+  for (int a = 0; a < 3; ++a) {
+    const double v = c[static_cast<std::size_t>(a)];
+    check_whole(v, "grab centre coordinate " + std::to_string(a), number_text(v));
+    if (!(v >= 0 && v < d[a]))
+      throw Error("grab centre coordinate " + std::to_string(a) + " = " + number_text(v) + " is out of range [0, " +
+                  std::to_string(d[a] - 1) + "]");
+  }
   return m.index(int(c[0]), int(c[1]), int(c[2]));
 }
 
@@ -113,15 +179,22 @@ StepOptions step_options(bool speeds, bool link_violation, bool cell_jacobian) {
   return o;
 }
 
-Vec3 vec3_from(py::handle v, const char* what) {
-  const auto c = v.cast<std::vector<float>>();
-  if (c.size() != 3) throw Error(std::string(what) + " must be 3 numbers (dx, dy, dz) in lattice units");
-  return {c[0], c[1], c[2]};
+/// (dx, dy, dz) of the argument `name` in `unit`; finiteness is Simulation::move_tool's rule.
+Vec3 offset_from(py::handle v, const std::string& name, const std::string& unit) {
+  const auto c = numbers_of(v, 3, name, name + " component", "give 3 numbers (dx, dy, dz) in " + unit);
+  return {static_cast<float>(c[0]), static_cast<float>(c[1]), static_cast<float>(c[2])};
 }
 
-std::unique_ptr<Simulation> make_simulation(const Volume& lattice, const Params& p, const std::string& backend) {
-  return std::make_unique<Simulation>(build_model(lattice, p), p, parse_backend(backend, "backend"));
+std::unique_ptr<GuardedSimulation> make_simulation(const Volume& lattice, const Params& p, const std::string& backend) {
+  return std::make_unique<GuardedSimulation>(build_model(lattice, p), p, parse_backend(backend, "backend"));
 }
+
+/// A ScenarioPlayer and the simulation it plays on: its calls take that simulation's turn.
+struct GuardedPlayer {
+  GuardedPlayer(const Scenario& s, GuardedSimulation& simulation) : sim(simulation), player(s, simulation) {}
+  GuardedSimulation& sim;
+  ScenarioPlayer player;
+};
 
 py::dict condition_dict(const ConditionResult& c) {
   py::dict d;
@@ -195,17 +268,22 @@ py::dict experiment_dict(const ExperimentResult& r, const Model& m) {
   return d;
 }
 
-py::dict run_experiment_py(const Volume& lattice, const Params& p, const Scenario* scenario, int settle_frames,
+py::dict run_experiment_py(const Volume& lattice, const Params& given, const Scenario* scenario, int settle_frames,
                            const std::string& backend, py::object progress) {
+  // The experiment runs without the GIL: it works on copies, not on objects other Python
+  // threads may change meanwhile (the lattice is read only by build_model, here).
+  const Params p = given;
   const Model model = build_model(lattice, p);
   ExperimentOptions opt;
   if (scenario) opt.scenario = *scenario;
   opt.settle_frames = settle_frames;
   opt.backend = parse_backend(backend, "backend");
   if (!progress.is_none())
-    opt.progress = [progress](int condition, int done, int total) {
+    // A handle, not an object: copying the std::function without the GIL must not touch the
+    // reference count (`progress` outlives the call).
+    opt.progress = [callback = py::handle(progress)](int condition, int done, int total) {
       py::gil_scoped_acquire gil;
-      progress(condition, done, total);
+      callback(condition, done, total);
     };
   ExperimentResult r;
   {
@@ -216,6 +294,22 @@ py::dict run_experiment_py(const Volume& lattice, const Params& p, const Scenari
 }
 
 }  // namespace
+
+SimulationTurn::SimulationTurn(GuardedSimulation& sim) : sim_(sim) {
+  if (sim.holder_.load() == std::this_thread::get_id())
+    throw Error("Simulation: called while this thread's own call to it is still running (e.g. from a __del__ "
+                "during that call); call it after that call returns");
+  if (!sim.mutex_.try_lock()) {
+    py::gil_scoped_release release;
+    sim.mutex_.lock();
+  }
+  sim.holder_.store(std::this_thread::get_id());
+}
+
+SimulationTurn::~SimulationTurn() {
+  sim_.holder_.store(std::thread::id{});
+  sim_.mutex_.unlock();
+}
 
 void bind_simulation(py::module_& m) {
   auto report = py::class_<FrameReport>(m, "FrameReport", "What one frame did (read-only). to_dict() gives every field.");
@@ -245,82 +339,94 @@ void bind_simulation(py::module_& m) {
             return lattice_view(s.state.flags.data(), s.dims, 1, self);
           }, "element flags (1 fixed, 2 grabbed, 4 anchor), (nx, ny, nz) uint8");
 
-  py::class_<Simulation>(m, "Simulation", R"(The frame pipeline on one lattice.
+  // Every method runs in the simulation's turn (in_turn / SimulationTurn): Python threads may
+  // share one Simulation, its calls run one after another.
+  py::class_<GuardedSimulation>(m, "Simulation", R"(The frame pipeline on one lattice.
 
 Simulation(lattice, params=Params(), backend="cpu"): `lattice` is a Volume in LPS index order
 (Input.lattice, read_volume, phantom). Coordinates, offsets and arrays are in lattice units,
-indexed [x, y, z] with x right->left, y anterior->posterior (anterior is -y), z inferior->superior.)")
+indexed [x, y, z] with x right->left, y anterior->posterior (anterior is -y), z inferior->superior.
+Several threads may call one Simulation: the calls run one at a time.)")
       .def(py::init(&make_simulation), py::arg("lattice"), py::arg("params") = Params{}, py::arg("backend") = "cpu")
-      .def_property_readonly("dims", [](const Simulation& s) { return int3_tuple(s.model().dims); })
-      .def_property_readonly("size", [](const Simulation& s) { return s.model().size(); }, "number of elements")
-      .def_property_readonly("spacing", [](const Simulation& s) {
+      .def_property_readonly("dims", in_turn(+[](Simulation& s) { return int3_tuple(s.model().dims); }))
+      .def_property_readonly("size", in_turn(+[](Simulation& s) { return s.model().size(); }), "number of elements")
+      .def_property_readonly("spacing", in_turn(+[](Simulation& s) {
             const auto& v = s.model().spacing;
             return py::make_tuple(v[0], v[1], v[2]);
-          }, "mm per lattice unit along x, y, z")
-      .def_property_readonly("origin", [](const Simulation& s) {
+          }), "mm per lattice unit along x, y, z")
+      .def_property_readonly("origin", in_turn(+[](Simulation& s) {
             const auto& v = s.model().origin;
             return py::make_tuple(v[0], v[1], v[2]);
-          }, "LPS mm of element (0, 0, 0)")
-      .def_property_readonly("direction", [](const Simulation& s) { return matrix3(s.model().direction); })
-      .def_property("params", [](const Simulation& s) { return s.params(); }, &Simulation::set_params,
+          }), "LPS mm of element (0, 0, 0)")
+      .def_property_readonly("direction", in_turn(+[](Simulation& s) { return matrix3(s.model().direction); }))
+      .def_property("params", in_turn(+[](Simulation& s) { return s.params(); }),
+                    in_turn(+[](Simulation& s, const Params& p) { s.set_params(p); }),
                     "A copy of the parameters; assigning applies new ones (validated).")
-      .def_property_readonly("backend", [](Simulation& s) { return backend_name(s.backend().kind()); })
-      .def_property_readonly("frame", &Simulation::frame)
-      .def_property_readonly("grabbing", &Simulation::grabbing)
-      .def_property_readonly("grab_centre", [](const Simulation& s) -> py::object {
+      .def_property_readonly("backend", in_turn(+[](Simulation& s) { return backend_name(s.backend().kind()); }))
+      .def_property_readonly("frame", in_turn(+[](Simulation& s) { return s.frame(); }))
+      .def_property_readonly("grabbing", in_turn(+[](Simulation& s) { return s.grabbing(); }))
+      .def_property_readonly("grab_centre", in_turn(+[](Simulation& s) -> py::object {
             return s.grab_centre() < 0 ? py::object(py::none()) : py::object(int3_tuple(s.model().coords(s.grab_centre())));
-          })
-      .def_property_readonly("tool_offset", [](const Simulation& s) { return vec3_tuple(s.tool_offset()); },
+          }))
+      .def_property_readonly("tool_offset", in_turn(+[](Simulation& s) { return vec3_tuple(s.tool_offset()); }),
                              "the offset the grabbed elements follow (the requested one, limited to what the tissue allows)")
-      .def_property_readonly("requested_offset", [](const Simulation& s) { return vec3_tuple(s.requested_offset()); })
-      .def_property_readonly("tool_limited", &Simulation::tool_limited)
-      .def_property_readonly("tool_limit", [](const Simulation& s) {
+      .def_property_readonly("requested_offset", in_turn(+[](Simulation& s) { return vec3_tuple(s.requested_offset()); }))
+      .def_property_readonly("tool_limited", in_turn(+[](Simulation& s) { return s.tool_limited(); }))
+      .def_property_readonly("tool_limit", in_turn(+[](Simulation& s) {
             return py::make_tuple(vec3_tuple(s.tool_limit_lo()), vec3_tuple(s.tool_limit_hi()));
-          }, "feasible tool offsets of the current grab, ((lo x, y, z), (hi x, y, z)), lattice units")
-      .def_property_readonly("grabbed", [](const Simulation& s) {
+          }), "feasible tool offsets of the current grab, ((lo x, y, z), (hi x, y, z)), lattice units")
+      .def_property_readonly("grabbed", in_turn(+[](Simulation& s) {
             return py::array_t<Index>(static_cast<py::ssize_t>(s.grabbed().size()), s.grabbed().data());
-          }, "linear indices (x + nx (y + ny z)) of the grabbed elements (a copy)")
+          }), "linear indices (x + nx (y + ny z)) of the grabbed elements (a copy)")
+      // Views of the model's arrays: taking one needs no turn (the arrays stay where they are;
+      // assigning params rewrites the labels in place).
       .def_property_readonly("hu", [](py::object self) {
-            const Model& mdl = self.cast<Simulation&>().model();
+            const Model& mdl = self.cast<GuardedSimulation&>().model();
             return lattice_view(mdl.hu.data(), mdl.dims, 1, self);
           }, "HU per element, (nx, ny, nz) float32, read-only view (no copy)")
       .def_property_readonly("labels", [](py::object self) {
-            const Model& mdl = self.cast<Simulation&>().model();
+            const Model& mdl = self.cast<GuardedSimulation&>().model();
             return lattice_view(mdl.tissue.data(), mdl.dims, 1, self);
           }, "tissue class per element (0 air .. 3 bone), (nx, ny, nz) uint8, read-only view (no copy)")
-      .def("paper_grab_centre", [](const Simulation& s) { return int3_tuple(s.model().coords(paper_grab_centre(s.model()))); },
+      .def("paper_grab_centre", in_turn(+[](Simulation& s) { return int3_tuple(s.model().coords(paper_grab_centre(s.model()))); }),
            "The paper's grab point: the anterior body surface on the central axial slice, x = nx/2.")
-      .def("grab", [](Simulation& s, py::handle centre, std::optional<float> radius, std::optional<float> radius_mm) {
-            if (radius && radius_mm) throw py::value_error("grab: give radius (lattice units) or radius_mm (millimetres), not both");
-            if (radius_mm) s.grab_mm(element_of(s, centre), *radius_mm);
-            else s.grab(element_of(s, centre), radius.value_or(0.0f));
+      .def("grab", [](GuardedSimulation& s, py::handle centre, std::optional<float> radius, std::optional<float> radius_mm) {
+            if (radius && radius_mm) throw Error("grab: give radius (lattice units) or radius_mm (millimetres), not both");
+            const CentreArg c = centre_arg(centre);  // Python objects first, outside the turn
+            SimulationTurn turn(s);
+            if (radius_mm) s.grab_mm(element_of(s.model(), c), *radius_mm);
+            else s.grab(element_of(s.model(), c), radius.value_or(0.0f));
           },
            py::arg("centre") = "auto", py::arg("radius") = py::none(), py::arg("radius_mm") = py::none(),
-           "Grab every element within `radius` (lattice units; 0 or neither: solver.grab_radius) or `radius_mm` "
-           "(millimetres, > 0; an ellipsoid on an anisotropic lattice) of `centre`: (x, y, z), an element index, "
-           "or \"auto\" (the paper's grab point).")
-      .def("move_tool", [](Simulation& s, py::handle offset, py::handle offset_mm) {
+           "Grab every element within `radius` (lattice units, [0, 64]; 0 or neither: solver.grab_radius) or "
+           "`radius_mm` (millimetres, > 0; an ellipsoid on an anisotropic lattice) of `centre`: (x, y, z) (whole "
+           "numbers), an element index, or \"auto\" (the paper's grab point).")
+      .def("move_tool", [](GuardedSimulation& s, py::handle offset, py::handle offset_mm) {
             if (offset.is_none() == offset_mm.is_none())
-              throw py::value_error("move_tool: give offset (lattice units) or offset_mm (millimetres), exactly one");
-            if (!offset.is_none()) s.move_tool(vec3_from(offset, "tool offset"));
-            else s.move_tool(lattice_offset_of_mm(s.model(), vec3_from(offset_mm, "tool offset_mm")));
+              throw Error("move_tool: give offset (lattice units) or offset_mm (millimetres), exactly one");
+            const bool mm = offset.is_none();
+            const Vec3 o = mm ? offset_from(offset_mm, "tool offset_mm", "millimetres")
+                              : offset_from(offset, "tool offset", "lattice units");
+            SimulationTurn turn(s);
+            s.move_tool(mm ? lattice_offset_of_mm(s.model(), o) : o);
           },
            py::arg("offset") = py::none(), py::arg("offset_mm") = py::none(),
            "Move the grabbed elements to their grab positions + offset: `offset` in lattice units or `offset_mm` "
            "in millimetres along the lattice axes (LPS; divided by the lattice spacing per axis), exactly one.")
-      .def("release", &Simulation::release)
-      .def("step", [](Simulation& s, bool speeds, bool link_violation, bool cell_jacobian) {
+      .def("release", in_turn(+[](Simulation& s) { s.release(); }))
+      .def("step", in_turn(+[](Simulation& s, bool speeds, bool link_violation, bool cell_jacobian) {
             const StepOptions o = step_options(speeds, link_violation, cell_jacobian);
             py::gil_scoped_release release;
             return s.step(o);
-          }, py::arg("speeds") = true, py::arg("link_violation") = false, py::arg("cell_jacobian") = false,
+          }), py::arg("speeds") = true, py::arg("link_violation") = false, py::arg("cell_jacobian") = false,
           "One frame; returns its FrameReport. link_violation / cell_jacobian: also measure those (O(N) each).")
-      .def("run", [](Simulation& s, int frames, bool speeds, bool link_violation, bool cell_jacobian) {
+      .def("run", [](GuardedSimulation& s, int frames, bool speeds, bool link_violation, bool cell_jacobian) {
             if (frames < 0) throw Error("frames " + std::to_string(frames) + " must be >= 0");
             const StepOptions o = step_options(speeds, link_violation, cell_jacobian);
             std::vector<FrameReport> reports;
             reports.reserve(static_cast<std::size_t>(frames));
             {
+              SimulationTurn turn(s);
               py::gil_scoped_release release;
               for (int f = 0; f < frames; ++f) reports.push_back(s.step(o));
             }
@@ -328,39 +434,51 @@ indexed [x, y, z] with x right->left, y anterior->posterior (anterior is -y), z 
           }, py::arg("frames"), py::arg("speeds") = true, py::arg("link_violation") = false, py::arg("cell_jacobian") = false,
           "`frames` frames with the tool as it is; returns per-frame statistics as numpy columns "
           "(one array per FrameReport field).")
-      .def("reset", &Simulation::reset, "Back to rest (X = X0, V = 0), grab released, frame 0.")
-      .def("positions", [](Simulation& s) {
+      .def("reset", in_turn(+[](Simulation& s) { s.reset(); }), "Back to rest (X = X0, V = 0), grab released, frame 0.")
+      .def("positions", in_turn(+[](Simulation& s) {
             std::vector<Vec3> pos;
             s.backend().download_positions(pos);
             return vec3_array(std::move(pos), s.model().dims);
-          }, "X in lattice units, (nx, ny, nz, 3) float32: one copy out of the backend, owned by the array")
-      .def("displacement", [](Simulation& s) {
+          }), "X in lattice units, (nx, ny, nz, 3) float32: one copy out of the backend, owned by the array")
+      .def("displacement", in_turn(+[](Simulation& s) {
             std::vector<Vec3> pos;
             s.backend().download_positions(pos);
             const Model& mdl = s.model();
             for (Index i = 0; i < mdl.size(); ++i) pos[static_cast<std::size_t>(i)] = pos[static_cast<std::size_t>(i)] - mdl.rest(i);
             return vec3_array(std::move(pos), mdl.dims);
-          }, "X - X0 in lattice units, (nx, ny, nz, 3) float32 (see displacement_mm for millimetres)")
-      .def("state", [](Simulation& s) {
+          }), "X - X0 in lattice units, (nx, ny, nz, 3) float32 (see displacement_mm for millimetres)")
+      .def("state", in_turn(+[](Simulation& s) {
             auto snap = std::make_unique<StateSnapshot>();
             s.backend().download(snap->state);
             snap->dims = s.model().dims;
             return snap;
-          }, "A copy of the whole state (positions, velocities, times, flags) as a State.")
-      .def("velocities", [](Simulation& s) {
+          }), "A copy of the whole state (positions, velocities, times, flags) as a State.")
+      .def("velocities", in_turn(+[](Simulation& s) {
             State st;
             s.backend().download(st);
             return vec3_array(std::move(st.vel), s.model().dims);
-          }, "V in lattice units per frame, (nx, ny, nz, 3) float32 (one copy out of the backend)");
+          }), "V in lattice units per frame, (nx, ny, nz, 3) float32 (one copy out of the backend)");
 
-  py::class_<ScenarioPlayer>(m, "ScenarioPlayer", "Plays a Scenario frame by frame on a Simulation.")
-      .def(py::init<const Scenario&, Simulation&>(), py::arg("scenario"), py::arg("simulation"), py::keep_alive<1, 3>())
-      .def_property_readonly("done", &ScenarioPlayer::done)
-      .def_property_readonly("frame", &ScenarioPlayer::frame)
-      .def("step", [](ScenarioPlayer& p, bool speeds, bool link_violation, bool cell_jacobian) {
+  py::class_<GuardedPlayer>(m, "ScenarioPlayer",
+                            "Plays a Scenario frame by frame on a Simulation (its calls take the simulation's turn).")
+      .def(py::init([](const Scenario& scenario, GuardedSimulation& sim) {
+             SimulationTurn turn(sim);
+             return std::make_unique<GuardedPlayer>(scenario, sim);
+           }),
+           py::arg("scenario"), py::arg("simulation"), py::keep_alive<1, 3>())
+      .def_property_readonly("done", [](GuardedPlayer& p) {
+            SimulationTurn turn(p.sim);
+            return p.player.done();
+          })
+      .def_property_readonly("frame", [](GuardedPlayer& p) {
+            SimulationTurn turn(p.sim);
+            return p.player.frame();
+          })
+      .def("step", [](GuardedPlayer& p, bool speeds, bool link_violation, bool cell_jacobian) {
             const StepOptions o = step_options(speeds, link_violation, cell_jacobian);
+            SimulationTurn turn(p.sim);
             py::gil_scoped_release release;
-            return p.step(o);
+            return p.player.step(o);
           }, py::arg("speeds") = true, py::arg("link_violation") = false, py::arg("cell_jacobian") = false,
           "Applies this frame's input (grab / move / release) and steps the simulation.");
 

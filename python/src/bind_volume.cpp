@@ -1,4 +1,7 @@
 // Volume (HU + geometry) and the synthetic phantom.
+#include <cmath>
+#include <sstream>
+
 #include "bindings.hpp"
 
 namespace hpcm::python {
@@ -28,6 +31,44 @@ std::array<double, 3> triple(py::handle v, const char* what) {
   return {a.data()[0], a.data()[1], a.data()[2]};
 }
 
+std::string number_text(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
+// How far direction columns may be from orthonormal: rounding in files and in user code
+// (float32 cosines are good to ~1e-7), not a real shear.
+constexpr double kOrthonormalTolerance = 1e-3;
+
+/// The geometry every reader and export assumes: a finite origin and a direction whose columns
+/// are orthonormal (a rotation, possibly with a flip); scale belongs in spacing. A NaN origin
+/// or a zero or sheared direction would otherwise reach the exports' geometry.
+void check_geometry(const Volume& v) {
+  for (int a = 0; a < 3; ++a)
+    if (!std::isfinite(v.origin[static_cast<std::size_t>(a)]))
+      throw Error("Volume: origin[" + std::to_string(a) + "] = " + number_text(v.origin[static_cast<std::size_t>(a)]) +
+                  " must be finite (LPS mm)");
+  const auto d = [&](int r, int c) { return v.direction[static_cast<std::size_t>(r * 3 + c)]; };
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c)
+      if (!std::isfinite(d(r, c)))
+        throw Error("Volume: direction[" + std::to_string(r) + "][" + std::to_string(c) + "] = " + number_text(d(r, c)) +
+                    " must be finite");
+  const std::string rule = "the direction's columns must be orthonormal (unit length, mutually orthogonal, within " +
+                           number_text(kOrthonormalTolerance) + "); put the voxel size in spacing";
+  for (int a = 0; a < 3; ++a)
+    for (int b = a; b < 3; ++b) {
+      const double dot = d(0, a) * d(0, b) + d(1, a) * d(1, b) + d(2, a) * d(2, b);
+      if (a == b && std::fabs(dot - 1) > kOrthonormalTolerance)
+        throw Error("Volume: direction column " + std::to_string(a) + " has length " + number_text(std::sqrt(dot)) +
+                    ", not unit: " + rule);
+      if (a != b && std::fabs(dot) > kOrthonormalTolerance)
+        throw Error("Volume: direction columns " + std::to_string(a) + " and " + std::to_string(b) +
+                    " are not orthogonal (dot product " + number_text(dot) + "): " + rule);
+    }
+}
+
 Volume volume_from_array(const py::array_t<float, py::array::f_style | py::array::forcecast>& hu, py::handle spacing,
                          py::handle origin, py::handle direction) {
   if (hu.ndim() != 3) throw Error("hu must be a 3-D array indexed [x, y, z], got " + std::to_string(hu.ndim()) + " dimensions");
@@ -36,6 +77,7 @@ Volume volume_from_array(const py::array_t<float, py::array::f_style | py::array
   v.spacing = triple(spacing, "spacing");
   v.origin = triple(origin, "origin");
   v.direction = matrix3_from(direction, "direction");
+  check_geometry(v);
   v.hu.assign(hu.data(), hu.data() + hu.size());  // Fortran order: x fastest, as hpcm stores it
   validate_volume(v, "Volume");
   return v;

@@ -5,7 +5,11 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <atomic>
 #include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
 #include <type_traits>
 #include <vector>
 
@@ -19,6 +23,45 @@ void bind_volume(py::module_& m);
 void bind_params(py::module_& m);
 void bind_simulation(py::module_& m);
 void bind_io(py::module_& m);
+
+/// A Simulation as Python holds it. A Simulation is not safe to use from two threads at once,
+/// and Python threads may call one at once (step and run release the GIL): every call from
+/// Python takes the simulation's turn (SimulationTurn) for its length, so calls run one after
+/// another.
+class GuardedSimulation : public Simulation {
+ public:
+  using Simulation::Simulation;
+
+ private:
+  friend class SimulationTurn;
+  std::mutex mutex_;
+  std::atomic<std::thread::id> holder_{};  // the thread whose call runs now (none: default id)
+};
+
+/// One call's turn on a simulation (RAII). Called with the GIL held. When another thread's call
+/// is running, it waits with the GIL released: that call may need the GIL to finish, and the
+/// other Python threads go on meanwhile. A call made while the same thread's call holds the turn
+/// (a __del__ run by the garbage collector mid-call) raises hpcm.Error instead of waiting for
+/// itself forever.
+class SimulationTurn {
+ public:
+  explicit SimulationTurn(GuardedSimulation& sim);
+  ~SimulationTurn();
+  SimulationTurn(const SimulationTurn&) = delete;
+  SimulationTurn& operator=(const SimulationTurn&) = delete;
+
+ private:
+  GuardedSimulation& sim_;
+};
+
+/// `f(simulation, args...)` as a method that runs in the simulation's turn.
+template <class R, class... Args>
+auto in_turn(R (*f)(Simulation&, Args...)) {
+  return [f](GuardedSimulation& sim, Args... args) -> R {
+    SimulationTurn turn(sim);
+    return f(sim, std::forward<Args>(args)...);
+  };
+}
 
 static_assert(sizeof(Vec3) == 3 * sizeof(float) && std::is_standard_layout_v<Vec3>, "Vec3 is three packed floats");
 

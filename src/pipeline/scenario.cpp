@@ -81,8 +81,8 @@ void Scenario::validate(const Model& m) const {
         throw Error(key + ".radius_mm = " + number(g.radius) + " is out of range: > 0 mm and at most " +
                     number(kMaxGrabRadius) + " lattice units along every axis (" +
                     number(kMaxGrabRadius * std::min({m.spacing[0], m.spacing[1], m.spacing[2]})) + " mm on this lattice)");
-    } else if (!(g.radius >= 0 && g.radius <= kMaxGrabRadius)) {
-      throw Error(key + ".radius is out of range [0, " + number(kMaxGrabRadius) + "] lattice units (0 = default)");
+    } else {
+      check_grab_radius(g.radius, key + ".radius");
     }
     for (std::size_t j = 0; j < g.path.size(); ++j) {
       const auto& kf = g.path[j];

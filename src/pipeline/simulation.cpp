@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <string>
 #include <memory>
+#include <sstream>
 #include <utility>
 
 #include "solver/tool_limit.hpp"
@@ -18,6 +19,14 @@ std::string fmt_number(double v) {
   return buf;
 }
 }  // namespace
+
+void check_grab_radius(float radius, const std::string& what) {
+  if (radius >= 0.0f && radius <= kMaxGrabRadius) return;
+  std::ostringstream msg;
+  msg << what << " = " << radius << " is out of range [0, " << kMaxGrabRadius
+      << "] lattice units (0: solver.grab_radius)";
+  throw Error(msg.str());
+}
 
 Simulation::Simulation(Model model, Params params, BackendKind backend)
     : Simulation(std::move(model), std::move(params), make_backend(backend)) {}
@@ -112,6 +121,8 @@ Vec3 grab_radii_of_mm(const Model& m, float radius_mm) {
 }
 
 void Simulation::grab(Index centre, float radius) {
+  // Before the default is used: a negative or NaN radius must not silently become the default.
+  check_grab_radius(radius, "grab radius");
   const float r = radius > 0 ? radius : params_.solver.grab_radius;
   if (!(r <= kMaxGrabRadius))
     throw Error("grab radius " + std::to_string(r) + " is out of range (0, " + fmt_number(kMaxGrabRadius) + "] lattice units");

@@ -6,8 +6,11 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <functional>
+#include <limits>
+#include <string>
 
 #include "hpcm/phantom.hpp"
 #include "hpcm/scenario.hpp"
@@ -391,4 +394,26 @@ TEST(LimitedPulls, OneStretchPerGrabAndKeyframeSegment) {
   EXPECT_FLOAT_EQ(got[0].achieved.y, -5.0f);
   // Segment 1 goes back from -8 to -4: the first frame of the stretch asked for the most.
   EXPECT_FLOAT_EQ(got[1].requested.y, path_offset(sc.grabs[0], 10).y);
+}
+
+// A grab radius outside [0, kMaxGrabRadius] (negative, NaN, too large) is refused with the range,
+// before anything is grabbed: it never silently becomes params.solver.grab_radius.
+TEST(GrabRadius, OutsideTheRangeIsRefusedNotReplacedByTheDefault) {
+  const Params p = no_relax_params();
+  Simulation sim(uniform_model({12, 12, 8}, 0.0f, p), p);
+  const Index centre = sim.model().index(6, 6, 4);
+  for (float bad : {-1.0f, std::nanf(""), -std::numeric_limits<float>::infinity(), 64.5f}) {
+    try {
+      sim.grab(centre, bad);
+      ADD_FAILURE() << "radius " << bad << " was accepted";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("grab radius = "), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("[0, 64]"), std::string::npos) << e.what();
+    }
+    EXPECT_FALSE(sim.grabbing());
+  }
+  sim.grab(centre, 0.0f);  // 0: the default radius (0.5: the centre alone)
+  EXPECT_EQ(sim.grabbed().size(), 1u);
+  sim.grab(centre, kMaxGrabRadius);
+  EXPECT_EQ(sim.grabbed().size(), static_cast<std::size_t>(sim.model().size()));
 }
