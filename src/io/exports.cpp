@@ -180,7 +180,7 @@ LabelMap label_map_on_input_grid(LabelMap map, const Input& in) {
     if (same_grid(cropped.grid, target)) return cropped;
   }
   throw Error(map.source + ": label map on another grid than the input " + in.source + ": label map " +
-              grid_text(map.grid) + "; input" + (in.roi.lo == Int3{} && in.roi.hi == target.dims ? "" : " (cropped to --roi)") +
+              grid_text(map.grid) + "; input" + (in.roi.lo == Int3{} && in.roi.hi == target.dims ? "" : " (cropped to the roi)") +
               " " + grid_text(target) + " (a label map must be on the input's own grid)");
 }
 
