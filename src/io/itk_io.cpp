@@ -1132,6 +1132,8 @@ LabelMap read_label_map(const std::string& path) {
                   std::to_string(io->GetNumberOfComponents()) + " components per voxel; a label map has one integer per voxel");
     if (nd < 3 || (nd > 3 && io->GetDimensions(3) != 1))
       throw Error(path + ": label map: a " + std::to_string(nd) + "-D image; a 3-D label map is needed");
+    check_read_memory(path, {io->GetDimensions(0), io->GetDimensions(1), io->GetDimensions(2)},
+                      double(io->GetComponentSize()));
     LabelMap map;
     map.source = path;
     map.component_type = itk::ImageIOBase::GetComponentTypeAsString(io->GetComponentType());

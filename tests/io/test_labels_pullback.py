@@ -92,6 +92,36 @@ def check_warped(out, label_path, labels, affine, f, tag="final"):
     return warped, still
 
 
+MET_TYPES = {"MET_SHORT": np.int16, "MET_UCHAR": np.uint8}
+
+
+def write_mha(path, labels, affine_ras):
+    """A MetaImage label map (LPS header) by hand: nibabel does not write MetaImage."""
+    lps = np.diag([-1.0, -1.0, 1.0]) @ affine_ras[:3, :3]
+    spacing = np.linalg.norm(lps, axis=0)
+    direction = lps / spacing  # column a = direction of index axis a
+    origin = np.diag([-1.0, -1.0, 1.0]) @ affine_ras[:3, 3]
+    met = {v: k for k, v in MET_TYPES.items()}[labels.dtype.type]
+    header = (f"ObjectType = Image\nNDims = 3\nBinaryData = True\nBinaryDataByteOrderMSB = False\n"
+              f"CompressedData = False\nTransformMatrix = {' '.join(map(str, direction.T.ravel()))}\n"
+              f"Offset = {' '.join(map(str, origin))}\nElementSpacing = {' '.join(map(str, spacing))}\n"
+              f"DimSize = {' '.join(map(str, labels.shape))}\nElementType = {met}\nElementDataFile = LOCAL\n")
+    path.write_bytes(header.encode() + labels.astype(labels.dtype.newbyteorder("<")).tobytes(order="F"))
+
+
+def read_mha(path):
+    """Type and values of a MetaImage file with its data inline (zlib-compressed or raw)."""
+    import zlib
+    raw = path.read_bytes()
+    end = raw.index(b"ElementDataFile = LOCAL\n") + len(b"ElementDataFile = LOCAL\n")
+    fields = dict(line.split(" = ", 1) for line in raw[:end].decode().splitlines())
+    data = raw[end:]
+    if fields.get("CompressedData") == "True":
+        data = zlib.decompress(data)
+    shape = tuple(int(v) for v in fields["DimSize"].split())
+    return np.frombuffer(data, dtype=MET_TYPES[fields["ElementType"]]).reshape(shape, order="F")
+
+
 @pytest.fixture(scope="module")
 def abdomen(tmp_path_factory):
     """The abdomen CT at --downsample 2 with a multi-label int16 map and a uint8 mask warped."""
@@ -104,10 +134,11 @@ def abdomen(tmp_path_factory):
     mask = (hu >= 25).astype(np.uint8)
     mask_path = tmp / "mask.nii.gz"
     nib.save(nib.Nifti1Image(mask, img.affine), str(mask_path))
+    write_mha(tmp / "organs_mha.mha", organs, img.affine)
     # --downsample 2: at 4 the pull moves every node of the small lattice a little, and the check
     # "identical to the input where nothing moved" would have no voxels to look at.
     out, _ = run_hpcm(tmp, NIFTI, "--downsample", 2, "--export-every", 5, "--warp-labels", organs_path,
-                      "--warp-labels", mask_path, pull=1.0)
+                      "--warp-labels", mask_path, "--warp-labels", tmp / "organs_mha.mha", pull=1.0)
     return tmp, img, hu, organs, organs_path, mask, mask_path, out
 
 
@@ -115,6 +146,10 @@ def test_warped_labels_abdomen(abdomen):
     tmp, img, hu, organs, organs_path, mask, mask_path, out = abdomen
     check_warped(out, organs_path, organs, img.affine, 2)
     check_warped(out, mask_path, mask, img.affine, 2)
+    # A MetaImage label map comes back as MetaImage, same type, the same labels as the NIfTI's.
+    mha = read_mha(out / "warped_organs_mha_final.mha")
+    assert mha.dtype == np.int16
+    np.testing.assert_array_equal(mha, np.asarray(nib.load(str(out / "warped_organs_final.nii.gz")).dataobj))
     # Every --export-every tag gets its own warped copy; the final one is the last frame's.
     check_warped(out, organs_path, organs, img.affine, 2, tag="0005")
     assert (out / "warped_organs_0010.nii.gz").is_file()
