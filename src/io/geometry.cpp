@@ -250,7 +250,10 @@ InverseMappingStats for_each_rest_position(const Grid& original, const Model& m,
           if (!(residual <= kInverseMappingToleranceMm)) ++plane_unconverged[z];
         }
         double q0[3];
-        for (int r = 0; r < 3; ++r) q0[r] = Minv[r * 3] * X[0] + Minv[r * 3 + 1] * X[1] + Minv[r * 3 + 2] * X[2] + cinv[r];
+        // Snapped to the voxel centre within round-off, so that where nothing moved every export
+        // (HU, labels, pull-back field) sees exactly the voxel itself.
+        for (int r = 0; r < 3; ++r)
+          q0[r] = snap(Minv[r * 3] * X[0] + Minv[r * 3 + 1] * X[1] + Minv[r * 3 + 2] * X[2] + cinv[r]);
         visit(x + static_cast<std::int64_t>(O[0]) * (y + static_cast<std::int64_t>(O[1]) * z), X, q0);
       }
     }

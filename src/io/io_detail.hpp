@@ -70,7 +70,7 @@ std::array<double, 9> index_to_physical_matrix(const std::array<double, 9>& dir,
 
 /// Receives one output voxel of the inverse mapping: its linear index in the output grid (first
 /// index fastest), its rest position X in lattice index units and q0, the same position as a
-/// continuous voxel index of the output grid. Called from several threads (distinct voxels).
+/// continuous voxel index of the output grid (snapped to a voxel centre within 1e-4). Called from several threads (distinct voxels).
 using RestPositionVisitor = std::function<void(std::int64_t voxel, const double* X, const double* q0)>;
 /// The inverse mapping of the deformed lattice onto `original` (a grid in any index order): for
 /// each voxel at x the rest position X solving X + u(X) = x (see resample_deformed), handed to
