@@ -53,7 +53,9 @@ nlohmann::json export_json(const io::Input& in, const io::ExportFiles& f, const 
   j["tag"] = tag;
   j["frames_done"] = frames_done;
   j["frame"] = frames_done - 1;  // the frames.csv row of the positions exported
-  const std::string field = "displacement u = X - X0, millimetres, LPS components";
+  const std::string field =
+      "forward (modelling, ToParent) displacement u = X - X0, millimetres, LPS components: rest position X0 moves "
+      "to X; resampling tools need displacement_pullback_<tag> instead";
   j["files"].push_back(file_json(f.displacement_nifti, in.lattice_grid, field, 3));
   if (!f.displacement_nrrd.empty()) j["files"].push_back(file_json(f.displacement_nrrd, in.lattice_grid, field, 3));
   const io::Grid grid = io::grid_of(in.stored);

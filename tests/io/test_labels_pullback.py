@@ -177,6 +177,7 @@ def test_export_json_names_the_new_files(abdomen):
     by_name = {f["file"]: f for f in final["files"]}
     assert "pull-back" in by_name["displacement_pullback_final.nii.gz"]["content"]
     assert "NOT the forward field" in by_name["displacement_pullback_final.nrrd"]["content"]
+    assert by_name["displacement_final.nii.gz"]["content"].startswith("forward")
     assert by_name["labels_deformed_final.nii.gz"]["shape"] == list(abdomen[2].shape)
     assert by_name["warped_organs_final.nii.gz"]["source"].endswith("organs.nii.gz")
     assert by_name["warped_mask_final.nii.gz"]["source"].endswith("mask.nii.gz")
