@@ -297,3 +297,16 @@ def test_plastimatch_recipe_reproduces_the_deformed_ct(f, tmp_path):
     err = np.sqrt(np.mean((warped - deformed) ** 2)) / change
     print(f"f = {f}: rms change {change:.2f} HU; plastimatch recipe vs hpcm {err:.3%} of it")
     assert err < RECIPE_TOLERANCE, f"f = {f}: the recipe differs from hpcm's deformed CT by {err:.2%}"
+
+
+def test_64_bit_labels_keep_their_values(abdomen, tmp_path):
+    img, hu = abdomen[1], abdomen[2]
+    big = np.zeros(hu.shape, dtype=np.uint64)
+    big[hu >= -500] = 2**63 + 12345  # beyond int64 and double precision: copied, never converted
+    big[hu >= 375] = 2**40 + 1
+    path = tmp_path / "big.nii.gz"
+    nib.save(nib.Nifti1Image(big, img.affine, dtype=np.uint64), str(path))
+    out, _ = run_hpcm(tmp_path, NIFTI, "--downsample", 4, "--warp-labels", path, pull=1.0)
+    warped = load(out / "warped_big_final.nii.gz")[1]
+    assert warped.dtype == np.uint64
+    assert set(np.unique(warped)) == set(np.unique(big))
