@@ -5,6 +5,7 @@
 // recorded with its grids in DIR/export.json. See docs/io.md and docs/slicer.md.
 #include <cstdio>
 #include <filesystem>
+#include <set>
 
 #include "run_options.hpp"
 
@@ -15,6 +16,10 @@ void add_export_options(CLI::App* cmd, RunOptions& o) {
                   "Folder for exports on the input's grid: displacement field (mm), deformed CT, tissue labels, "
                   "export.json (needs ITK)");
   cmd->add_option("--export-every", o.export_every, "Also export every N frames (0: only at the end)");
+  cmd->add_option("--warp-labels", o.warp_labels,
+                  "Label map on the input's grid (NIfTI/NRRD/MHA, integer type) to deform with every export, by "
+                  "nearest label: warped_<name>_<tag><ext> (repeatable; needs --export)")
+      ->allow_extra_args(false);
   cmd->add_flag("--strict", o.strict,
                 "Exit with an error (after writing every file) when an exported displacement field folds or the "
                 "deformed CT's inverse mapping did not converge");
@@ -41,16 +46,37 @@ nlohmann::json file_json(const std::string& path, const io::Grid& g, const std::
 }
 
 /// One export's entry of export.json: its files with their grids and the integrity figures.
-nlohmann::json export_json(const io::Input& in, const io::ExportFiles& f, const std::string& tag, int frames_done) {
+nlohmann::json export_json(const io::Input& in, const io::ExportFiles& f, const std::string& tag, int frames_done,
+                           const std::vector<std::string>& warp_sources) {
   const io::ExportIntegrity& ig = f.integrity;
   nlohmann::json j;
   j["tag"] = tag;
   j["frames_done"] = frames_done;
   j["frame"] = frames_done - 1;  // the frames.csv row of the positions exported
-  const std::string field = "displacement u = X - X0, millimetres, LPS components";
+  const std::string field =
+      "forward (modelling, ToParent) displacement u = X - X0, millimetres, LPS components: rest position X0 moves "
+      "to X; resampling tools need displacement_pullback_<tag> instead";
   j["files"].push_back(file_json(f.displacement_nifti, in.lattice_grid, field, 3));
   if (!f.displacement_nrrd.empty()) j["files"].push_back(file_json(f.displacement_nrrd, in.lattice_grid, field, 3));
-  j["files"].push_back(file_json(f.deformed, io::grid_of(in.stored), "deformed CT, HU", 1));
+  const io::Grid grid = io::grid_of(in.stored);
+  j["files"].push_back(file_json(f.deformed, grid, "deformed CT, HU", 1));
+  const std::string pullback =
+      "pull-back (resampling, FromParent) displacement v = X - x, millimetres, LPS components: the deformed CT at "
+      "x is the input at x + v(x) (for plastimatch convert --xf, ITK resampling, Slicer); NOT the forward field";
+  j["files"].push_back(file_json(f.pullback_nifti, grid, pullback, 3));
+  if (!f.pullback_nrrd.empty()) j["files"].push_back(file_json(f.pullback_nrrd, grid, pullback, 3));
+  j["files"].push_back(file_json(f.labels_deformed, grid,
+                                 "deformed tissue class (0 air, 1 skin_fat, 2 muscle_organ, 3 bone), nearest label "
+                                 "through the deformed CT's inverse mapping",
+                                 1));
+  for (std::size_t k = 0; k < f.warped_labels.size(); ++k) {
+    nlohmann::json w = file_json(f.warped_labels[k], grid,
+                                 "label map deformed by nearest label through the deformed CT's inverse mapping "
+                                 "(0 outside the input)",
+                                 1);
+    w["source"] = warp_sources[k];
+    j["files"].push_back(w);
+  }
   j["displacement_jacobian"] = {
       {"computed_on", std::filesystem::path(f.displacement_nifti).filename().string()},
       {"method", "det(I + du/dp) at the 8 corners of every grid cell, from the differences along the cell's edges "
@@ -79,14 +105,15 @@ nlohmann::json export_json(const io::Input& in, const io::ExportFiles& f, const 
 
 void ExportSession::write_frame(const std::string& tag, int frames_done, bool final_export) {
 #if defined(HPCM_WITH_ITK)
-  const io::ExportFiles f = io::export_frame(input_, sim_.model(), sim_.state().pos, o_.export_dir, tag, final_export);
+  const io::ExportFiles f =
+      io::export_frame(input_, sim_.model(), sim_.state().pos, o_.export_dir, tag, final_export, warp_labels_);
   const std::string shown = o_.export_shown.empty() ? o_.export_dir : o_.export_shown;
   for (const std::string& p : io::export_problems(f)) {
     std::fprintf(stderr, "hpcm: warning: export %s (frame %d) in %s: %s\n", tag.c_str(), frames_done - 1, shown.c_str(),
                  p.c_str());
     problems_.push_back(p);
   }
-  sidecar_["exports"].push_back(export_json(input_, f, tag, frames_done));
+  sidecar_["exports"].push_back(export_json(input_, f, tag, frames_done, o_.warp_labels));
   bool clean = true;
   for (const auto& e : sidecar_["exports"]) clean = clean && e["clean"].get<bool>();
   sidecar_["all_clean"] = clean;
@@ -99,10 +126,20 @@ ExportSession::ExportSession(const RunOptions& o, Simulation& sim) : o_(o), sim_
     throw Error("--export-every " + std::to_string(o_.export_every) + " is out of range: must be >= 0");
   if (o_.export_every > 0 && o_.export_dir.empty()) throw Error("--export-every needs --export DIR");
   if (o_.strict && o_.export_dir.empty()) throw Error("--strict needs --export DIR");
+  if (!o_.warp_labels.empty() && o_.export_dir.empty()) throw Error("--warp-labels needs --export DIR");
   if (o_.export_dir.empty()) return;
 #if defined(HPCM_WITH_ITK)
-  make_output_dir(o_.export_dir, "--export");
   input_ = load_input(o_.source);  // the same input the lattice came from, with its own grid
+  // Every label map is read and checked against the input's grid before anything is written.
+  std::set<std::string> names;
+  for (const std::string& path : o_.warp_labels) {
+    const std::string name = io::warped_label_name(path, "final");
+    if (!names.insert(name).second)
+      throw Error("--warp-labels " + path + ": another label map has the same file name; its deformed copy (" + name +
+                  ") would overwrite the other's");
+    warp_labels_.push_back(io::label_map_on_input_grid(io::read_label_map(path), input_));
+  }
+  make_output_dir(o_.export_dir, "--export");
   const std::string labels = o_.export_dir + "/labels.nii.gz";
   io::write_label_map(input_, sim_.model(), labels);
   sidecar_["input"] = input_.source;
@@ -138,9 +175,10 @@ void ExportSession::finish(int frames) {
   const auto& last = sidecar_["exports"].back();
   const auto& jac = last["displacement_jacobian"];
   const auto& inv = last["deformed_inverse_mapping"];
-  std::printf("exported to %s: displacement_final.nii.gz/.nrrd (mm), deformed_final%s, labels.nii.gz + labels.ctbl, "
-              "export.json\n",
-              (o_.export_shown.empty() ? o_.export_dir : o_.export_shown).c_str(), io::deformed_extension(input_).c_str());
+  std::printf("exported to %s: displacement_final.nii.gz/.nrrd (forward, mm), displacement_pullback_final.nii.gz/.nrrd "
+              "(pull-back, mm), deformed_final%s, labels.nii.gz + labels_deformed_final.nii.gz (+ .ctbl)%s, export.json\n",
+              (o_.export_shown.empty() ? o_.export_dir : o_.export_shown).c_str(), io::deformed_extension(input_).c_str(),
+              warp_labels_.empty() ? "" : (", " + std::to_string(warp_labels_.size()) + " warped_*_final label map(s)").c_str());
   std::printf("  field: %lld of %lld cells folded (smallest Jacobian determinant %s); deformed CT: %lld of %lld voxels "
               "not converged (largest residual %.3g mm)\n",
               jac["folded_cells"].get<long long>(), jac["cells_checked"].get<long long>(),

@@ -23,6 +23,7 @@ struct RunOptions {
   std::string export_shown;   ///< the --export folder as given, for messages (empty: export_dir)
   int export_every = 0;
   bool strict = false;        ///< exit non-zero when an export folds or its inverse mapping did not converge
+  std::vector<std::string> warp_labels;  ///< label maps on the input's grid, deformed with every export
 };
 
 /// Adds --export DIR / --export-every N / --strict (no-op without ITK).
@@ -47,6 +48,7 @@ class ExportSession {
   nlohmann::json sidecar_;  ///< export.json, rewritten after every export
 #if defined(HPCM_WITH_ITK)
   io::Input input_;     ///< the input on its own grid, and how the lattice lies on it
+  std::vector<io::LabelMap> warp_labels_;  ///< --warp-labels, on input_.stored's grid
 #endif
 };
 

@@ -195,6 +195,51 @@ InverseMappingStats write_deformed_volume(const Input& in, const Model& m, const
 InverseMappingStats write_deformed_volume(const Volume& target, const Model& m, const std::vector<Vec3>& pos,
                                           const std::string& path);
 
+/// An integer label map (a segmentation: organ masks, a multi-label map) as stored: its grid and
+/// raw values in the file's own index order.
+struct LabelMap {
+  std::string source;               ///< path it was read from
+  Grid grid;                        ///< in the file's own index order
+  std::string component_type;       ///< ITK's name: "unsigned_char", "short", "int", "unsigned_long_long", ...
+  int bytes = 1;                    ///< bytes per voxel
+  std::vector<unsigned char> data;  ///< grid.size() * bytes, first index fastest, native byte order
+};
+/// Reads a 3-D scalar integer label map (NIfTI, NRRD, MetaImage; any signed or unsigned integer
+/// type). Throws hpcm::Error naming the path for any other pixel type (float, vector, RGB) and
+/// for NIfTI files that scale their values (scl_slope / scl_inter).
+LabelMap read_label_map(const std::string& path);
+/// The label map on the grid of `in.stored`: as it is when its grid is that one, cropped to
+/// `in.roi` when its grid is the whole input file's (an --roi run). Throws hpcm::Error naming
+/// both grids otherwise (tolerance 1e-4 mm / 1e-6 of direction).
+LabelMap label_map_on_input_grid(LabelMap map, const Input& in);
+/// Writes a label map with its own grid and integer type (.nii, .nii.gz, .nrrd, .nhdr, .mha, .mhd).
+void write_label_values(const LabelMap& map, const std::string& path);
+
+/// Everything resampled through one inverse mapping of the deformed lattice onto the grid of
+/// `in.stored` (the deformed CT's grid).
+struct DeformedOnInputGrid {
+  Grid grid;                          ///< in.stored's grid, the input's own index order
+  std::vector<float> hu;              ///< deformed CT (trilinear; air outside the input)
+  std::vector<float> pullback_mm;     ///< pull-back field v = X - x, mm, LPS components, 3 per voxel
+  std::vector<unsigned char> classes; ///< tissue class of the nearest lattice element (air outside)
+  std::vector<LabelMap> labels;       ///< each given label map, nearest label (0 outside the input)
+  InverseMappingStats stats;          ///< how well the inverse mapping converged
+};
+/// One inverse mapping (fixed point, then Newton) per output voxel of `in.stored`'s grid, and
+/// every export that follows it: the deformed CT, the pull-back field, the deformed class labels
+/// and each of `labels` (each must be on in.stored's grid: label_map_on_input_grid).
+DeformedOnInputGrid deform_on_input_grid(const Input& in, const Model& m, const std::vector<Vec3>& pos,
+                                         const std::vector<LabelMap>& labels = {});
+/// Writes a pull-back field (pullback_mm of deform_on_input_grid) on `g` as a 3-component float
+/// vector image; NRRD files carry `displacement field type: resampling`.
+void write_pullback_field(const Grid& g, const std::vector<float>& pullback_mm, const std::string& path);
+/// Writes a tissue class map (uint8) on `g` with its Slicer colour table (.ctbl) beside it.
+void write_class_labels(const Grid& g, const std::vector<unsigned char>& classes, const std::string& path);
+
+/// File name of a warped label map: "warped_<name without extension>_<tag><its extension>",
+/// e.g. organs.nii.gz -> warped_organs_final.nii.gz.
+std::string warped_label_name(const std::string& label_path, const std::string& tag);
+
 /// The figures that say whether an export can be trusted: the field is fold-free and every
 /// voxel of the deformed CT found its rest position.
 struct ExportIntegrity {
@@ -210,12 +255,18 @@ struct ExportFiles {
   std::string displacement_nifti;  ///< displacement_<tag>.nii.gz
   std::string displacement_nrrd;   ///< displacement_<tag>.nrrd (empty unless requested)
   std::string deformed;            ///< deformed_<tag><input's extension>
+  std::string pullback_nifti;      ///< displacement_pullback_<tag>.nii.gz
+  std::string pullback_nrrd;       ///< displacement_pullback_<tag>.nrrd (empty unless requested)
+  std::string labels_deformed;     ///< labels_deformed_<tag>.nii.gz (+ .ctbl)
+  std::vector<std::string> warped_labels;  ///< warped_label_name of each label map given
   ExportIntegrity integrity;
 };
-/// Writes the displacement field (NIfTI, and NRRD when `nrrd_field`) and the deformed CT for
-/// the positions `pos` into folder `dir`, tagged `tag` ("final", "0020", ...), and checks them.
+/// Writes the displacement field (NIfTI, and NRRD when `nrrd_field`), and through one inverse
+/// mapping the deformed CT, the pull-back field (NIfTI, and NRRD when `nrrd_field`), the deformed
+/// class labels and each of `labels` warped, for the positions `pos` into folder `dir`, tagged
+/// `tag` ("final", "0020", ...), and checks them. `labels`: label_map_on_input_grid of each.
 ExportFiles export_frame(const Input& in, const Model& m, const std::vector<Vec3>& pos, const std::string& dir,
-                         const std::string& tag, bool nrrd_field);
+                         const std::string& tag, bool nrrd_field, const std::vector<LabelMap>& labels = {});
 /// What is wrong with an export, one sentence per problem naming the file and the figures;
 /// empty when the export is clean.
 std::vector<std::string> export_problems(const ExportFiles& f);

@@ -39,6 +39,17 @@ py::dict grid_dict(const io::Grid& g) {
 // Called in the simulation's turn (SimulationTurn): another thread may be stepping it.
 const std::vector<Vec3>& positions_of(Simulation& sim) { return sim.state().pos; }
 
+/// A label map's values as a numpy array of its own integer type, indexed [x, y, z] in the
+/// file's own index order (no copy: the array owns the moved map).
+py::array label_array(io::LabelMap&& map) {
+  const bool is_signed = map.component_type.rfind("unsigned", 0) != 0;
+  const py::dtype dt((is_signed ? "i" : "u") + std::to_string(map.bytes));
+  auto* owned = new io::LabelMap(std::move(map));
+  py::capsule free_when_done(owned, [](void* p) { delete static_cast<io::LabelMap*>(p); });
+  const py::ssize_t b = owned->bytes, nx = owned->grid.dims.x, ny = owned->grid.dims.y, nz = owned->grid.dims.z;
+  return py::array(dt, {nx, ny, nz}, {b, b * nx, b * nx * ny}, owned->data.data(), free_when_done);
+}
+
 }  // namespace
 
 void bind_io(py::module_& m) {
@@ -131,6 +142,9 @@ order: {"axis", "reversed"}: LPS axis p runs along stored axis axis[p], backward
         d["displacement_nifti"] = f.displacement_nifti;
         d["displacement_nrrd"] = f.displacement_nrrd.empty() ? py::object(py::none()) : py::object(py::str(f.displacement_nrrd));
         d["deformed"] = f.deformed;
+        d["pullback_nifti"] = f.pullback_nifti;
+        d["pullback_nrrd"] = f.pullback_nrrd.empty() ? py::object(py::none()) : py::object(py::str(f.pullback_nrrd));
+        d["labels_deformed"] = f.labels_deformed;
         const io::ExportIntegrity& ig = f.integrity;
         py::dict jac, inv;
         jac["cells"] = ig.field.cells;
@@ -148,6 +162,25 @@ order: {"axis", "reversed"}: LPS axis p runs along stored axis axis[p], backward
       "Writes displacement_<tag>.nii.gz (+ .nrrd) and deformed_<tag><input's extension> into `folder`, "
       "as `hpcm run --export` does; returns the paths, the field's Jacobian check (displacement_jacobian), the "
       "deformed CT's inverse-mapping residuals (inverse_mapping) and the problems found (empty when clean).");
+
+  m.def("warp_labels", [](const io::Input& in, Simulation& sim, const std::string& labels, py::object path) {
+        io::LabelMap map = io::label_map_on_input_grid(io::read_label_map(labels), in);
+        io::DeformedOnInputGrid d = io::deform_on_input_grid(in, sim.model(), positions_of(sim), {map});
+        if (!path.is_none()) io::write_label_values(d.labels[0], path.cast<std::string>());
+        return label_array(std::move(d.labels[0]));
+      }, py::arg("input"), py::arg("simulation"), py::arg("labels"), py::arg("path") = py::none(),
+      "Deforms the label map file `labels` (NIfTI/NRRD/MetaImage, any integer type, on the input's grid: "
+      "input.stored's, or the whole file's for an roi input) by nearest label through the deformed CT's inverse "
+      "mapping (0 where the rest position lies outside the input). Returns the deformed labels, same dtype, "
+      "indexed [x, y, z] in the input's own order; writes them to `path` (same type) when given. "
+      "A float label map or one on another grid raises hpcm.Error naming both grids.");
+  m.def("pullback_mm", [](const io::Input& in, Simulation& sim) {
+        io::DeformedOnInputGrid d = io::deform_on_input_grid(in, sim.model(), positions_of(sim));
+        return lattice_array(std::move(d.pullback_mm), d.grid.dims, 3);
+      }, py::arg("input"), py::arg("simulation"),
+      "Pull-back (resampling) displacement v = X - x in millimetres (LPS components) on input.stored's grid, "
+      "indexed in the input's own order: the deformed CT at x is the input at x + v(x). What "
+      "displacement_pullback_<tag>.nii.gz holds.");
 }
 #else
 void bind_io(py::module_&) {}

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <limits>
 #include <filesystem>
 
@@ -129,8 +130,116 @@ std::string deformed_extension(const Input& in) {
   return ".nii.gz";
 }
 
+namespace {
+std::string grid_text(const Grid& g) {
+  char buf[320];
+  std::snprintf(buf, sizeof buf, "%dx%dx%d voxels, spacing %g,%g,%g mm, origin %g,%g,%g mm, direction %g,%g,%g,%g,%g,%g,%g,%g,%g",
+                g.dims.x, g.dims.y, g.dims.z, g.spacing[0], g.spacing[1], g.spacing[2], g.origin[0], g.origin[1],
+                g.origin[2], g.direction[0], g.direction[1], g.direction[2], g.direction[3], g.direction[4],
+                g.direction[5], g.direction[6], g.direction[7], g.direction[8]);
+  return buf;
+}
+
+bool same_grid(const Grid& a, const Grid& b) {
+  if (!(a.dims == b.dims)) return false;
+  for (int k = 0; k < 3; ++k)
+    if (std::abs(a.spacing[k] - b.spacing[k]) > 1e-4 || std::abs(a.origin[k] - b.origin[k]) > 1e-4) return false;
+  for (int k = 0; k < 9; ++k)
+    if (std::abs(a.direction[k] - b.direction[k]) > 1e-6) return false;
+  return true;
+}
+
+// The label map cut to box [lo, hi) of its own indices (what --roi does to the CT).
+LabelMap crop(const LabelMap& map, const Box& box) {
+  LabelMap out = map;
+  const Int3 n{box.hi.x - box.lo.x, box.hi.y - box.lo.y, box.hi.z - box.lo.z};
+  out.grid.dims = n;
+  const int lo[3] = {box.lo.x, box.lo.y, box.lo.z};
+  for (int r = 0; r < 3; ++r)
+    for (int a = 0; a < 3; ++a) out.grid.origin[r] += map.grid.direction[r * 3 + a] * map.grid.spacing[a] * lo[a];
+  out.data.assign(out.grid.size() * map.bytes, 0);
+  const std::size_t row = static_cast<std::size_t>(n.x) * map.bytes;
+  for (int z = 0; z < n.z; ++z)
+    for (int y = 0; y < n.y; ++y) {
+      const std::size_t src = (box.lo.x + static_cast<std::size_t>(map.grid.dims.x) *
+                                              (box.lo.y + y + static_cast<std::size_t>(map.grid.dims.y) * (box.lo.z + z))) *
+                              map.bytes;
+      std::memcpy(out.data.data() + (static_cast<std::size_t>(z) * n.y + y) * row, map.data.data() + src, row);
+    }
+  return out;
+}
+}  // namespace
+
+LabelMap label_map_on_input_grid(LabelMap map, const Input& in) {
+  const Grid target = grid_of(in.stored);
+  if (same_grid(map.grid, target)) return map;
+  // An --roi run: a label map on the whole input file's grid is cropped like the CT.
+  const Int3 d = map.grid.dims;
+  if (d.x >= in.roi.hi.x && d.y >= in.roi.hi.y && d.z >= in.roi.hi.z && !(d == target.dims)) {
+    const LabelMap cropped = crop(map, in.roi);
+    if (same_grid(cropped.grid, target)) return cropped;
+  }
+  throw Error(map.source + ": label map on another grid than the input " + in.source + ": label map " +
+              grid_text(map.grid) + "; input" + (in.roi.lo == Int3{} && in.roi.hi == target.dims ? "" : " (cropped to the roi)") +
+              " " + grid_text(target) + " (a label map must be on the input's own grid)");
+}
+
+std::string warped_label_name(const std::string& label_path, const std::string& tag) {
+  const std::string file = std::filesystem::path(label_path).filename().string();
+  const std::string ext = detail::extension_of(detail::format_of(file));
+  const std::string stem = file.substr(0, file.size() - ext.size());
+  return "warped_" + stem + "_" + tag + ext;
+}
+
+DeformedOnInputGrid deform_on_input_grid(const Input& in, const Model& m, const std::vector<Vec3>& pos,
+                                         const std::vector<LabelMap>& labels) {
+  detail::check_model_matches(in, m, "deformed CT");
+  if (static_cast<Index>(m.tissue.size()) != m.size())
+    throw Error("deformed labels: the model has " + std::to_string(m.tissue.size()) + " tissue labels for " +
+                std::to_string(m.size()) + " elements");
+  DeformedOnInputGrid d;
+  d.grid = grid_of(in.stored);
+  const std::size_t n = d.grid.size();
+  for (const LabelMap& l : labels)
+    if (!same_grid(l.grid, d.grid) || l.data.size() != n * static_cast<std::size_t>(l.bytes))
+      throw Error(l.source + ": label map on another grid than the input " + in.source + ": label map " +
+                  grid_text(l.grid) + "; input " + grid_text(d.grid));
+  d.hu.resize(n);
+  d.pullback_mm.resize(3 * n);
+  d.classes.resize(n);
+  for (const LabelMap& l : labels) {
+    LabelMap out = l;
+    out.data.assign(l.data.size(), 0);
+    d.labels.push_back(std::move(out));
+  }
+  const std::array<double, 9> A = detail::index_to_physical_matrix(d.grid.direction, d.grid.spacing);
+  const Int3 dims = d.grid.dims;
+  d.stats = detail::for_each_rest_position(
+      d.grid, m, pos, detail::kInverseMappingIterations, detail::kInverseMappingNewtonIterations,
+      [&](std::int64_t voxel, const double* X, const double* q0) {
+        d.hu[voxel] = detail::sample_trilinear(in.stored, q0);
+        // Pull-back v = X - x in millimetres: where each output voxel takes its value from.
+        const double q[3] = {double(voxel % dims.x), double((voxel / dims.x) % dims.y),
+                             double(voxel / (static_cast<std::int64_t>(dims.x) * dims.y))};
+        for (int r = 0; r < 3; ++r) {
+          double v = 0;
+          for (int a = 0; a < 3; ++a) v += A[r * 3 + a] * (q0[a] - q[a]);
+          d.pullback_mm[3 * voxel + r] = static_cast<float>(v);
+        }
+        // Nearest label: labels are never averaged (no label is invented).
+        const std::int64_t element = detail::nearest_voxel(m.dims, X);
+        d.classes[voxel] = element < 0 ? 0 : m.tissue[element];
+        const std::int64_t source = detail::nearest_voxel(dims, q0);
+        for (std::size_t k = 0; k < labels.size(); ++k) {
+          const std::size_t b = static_cast<std::size_t>(labels[k].bytes);
+          if (source >= 0) std::memcpy(d.labels[k].data.data() + voxel * b, labels[k].data.data() + source * b, b);
+        }
+      });
+  return d;
+}
+
 ExportFiles export_frame(const Input& in, const Model& m, const std::vector<Vec3>& pos, const std::string& dir,
-                         const std::string& tag, bool nrrd_field) {
+                         const std::string& tag, bool nrrd_field, const std::vector<LabelMap>& labels) {
   const std::filesystem::path d(dir);
   ExportFiles f;
   f.displacement_nifti = (d / ("displacement_" + tag + ".nii.gz")).string();
@@ -141,7 +250,23 @@ ExportFiles export_frame(const Input& in, const Model& m, const std::vector<Vec3
     write_displacement_field(in, m, pos, f.displacement_nrrd);
   }
   f.deformed = (d / ("deformed_" + tag + deformed_extension(in))).string();
-  f.integrity.deformed = write_deformed_volume(in, m, pos, f.deformed);
+  const DeformedOnInputGrid def = deform_on_input_grid(in, m, pos, labels);
+  Volume deformed = in.stored;
+  deformed.hu = def.hu;
+  write_volume(deformed, f.deformed);
+  f.integrity.deformed = def.stats;
+  f.pullback_nifti = (d / ("displacement_pullback_" + tag + ".nii.gz")).string();
+  write_pullback_field(def.grid, def.pullback_mm, f.pullback_nifti);
+  if (nrrd_field) {
+    f.pullback_nrrd = (d / ("displacement_pullback_" + tag + ".nrrd")).string();
+    write_pullback_field(def.grid, def.pullback_mm, f.pullback_nrrd);
+  }
+  f.labels_deformed = (d / ("labels_deformed_" + tag + ".nii.gz")).string();
+  write_class_labels(def.grid, def.classes, f.labels_deformed);
+  for (const LabelMap& l : def.labels) {
+    f.warped_labels.push_back((d / warped_label_name(l.source, tag)).string());
+    write_label_values(l, f.warped_labels.back());
+  }
   return f;
 }
 

@@ -124,13 +124,12 @@ inline double snap(double q) {
 }
 }  // namespace
 
-std::vector<float> resample_deformed(const Volume& original, const Model& m, const std::vector<Vec3>& pos,
-                                     int max_iterations, int newton_iterations, InverseMappingStats* stats) {
+InverseMappingStats for_each_rest_position(const Grid& original, const Model& m, const std::vector<Vec3>& pos,
+                                           int max_iterations, int newton_iterations, const RestPositionVisitor& visit) {
   if (static_cast<Index>(pos.size()) != m.size())
     throw Error("deformed volume: " + std::to_string(pos.size()) + " positions for a lattice of " +
                 std::to_string(m.size()) + " elements");
-  if (original.hu.size() != original.size() || original.size() == 0)
-    throw Error("deformed volume: the original volume is empty");
+  if (original.size() == 0) throw Error("deformed volume: the original volume is empty");
   const std::array<double, 9> A = index_to_physical_matrix(m.direction, m.spacing);       // lattice -> mm
   const std::array<double, 9> B = index_to_physical_matrix(original.direction, original.spacing);  // input -> mm
   const std::array<double, 9> Ainv = mat_inverse(A), Binv = mat_inverse(B);
@@ -194,25 +193,6 @@ std::vector<float> resample_deformed(const Volume& original, const Model& m, con
     const std::array<double, 3> f_mm = mat_vec(A, {F[0], F[1], F[2]});
     return std::sqrt(f_mm[0] * f_mm[0] + f_mm[1] * f_mm[1] + f_mm[2] * f_mm[2]);
   };
-  auto sample_hu = [&](double q[3]) -> float {
-    int i0[3], i1[3];
-    double f[3];
-    for (int a = 0; a < 3; ++a) {
-      if (!(q[a] >= -0.5 && q[a] <= O[a] - 0.5)) return kAirHU;
-      const double s = std::clamp(snap(q[a]), 0.0, double(O[a] - 1));
-      i0[a] = static_cast<int>(std::floor(s));
-      f[a] = s - i0[a];
-      i1[a] = std::min(i0[a] + 1, O[a] - 1);
-    }
-    double v = 0;
-    for (int k = 0; k < 8; ++k) {
-      const double w = ((k & 1) ? f[0] : 1 - f[0]) * ((k & 2) ? f[1] : 1 - f[1]) * ((k & 4) ? f[2] : 1 - f[2]);
-      if (w == 0) continue;
-      v += w * original.at((k & 1) ? i1[0] : i0[0], (k & 2) ? i1[1] : i0[1], (k & 4) ? i1[2] : i0[2]);
-    }
-    return static_cast<float>(v);
-  };
-  std::vector<float> out(original.size());
   // Per output plane: unconverged voxels, the largest residual and where it is (combined in
   // plane order afterwards, so the figures do not depend on the thread count).
   std::vector<Index> plane_unconverged(static_cast<std::size_t>(O[2]), 0);
@@ -270,25 +250,71 @@ std::vector<float> resample_deformed(const Volume& original, const Model& m, con
           if (!(residual <= kInverseMappingToleranceMm)) ++plane_unconverged[z];
         }
         double q0[3];
-        for (int r = 0; r < 3; ++r) q0[r] = Minv[r * 3] * X[0] + Minv[r * 3 + 1] * X[1] + Minv[r * 3 + 2] * X[2] + cinv[r];
-        out[original.index(x, y, z)] = sample_hu(q0);
+        // Snapped to the voxel centre within round-off, so that where nothing moved every export
+        // (HU, labels, pull-back field) sees exactly the voxel itself.
+        for (int r = 0; r < 3; ++r)
+          q0[r] = snap(Minv[r * 3] * X[0] + Minv[r * 3 + 1] * X[1] + Minv[r * 3 + 2] * X[2] + cinv[r]);
+        visit(x + static_cast<std::int64_t>(O[0]) * (y + static_cast<std::int64_t>(O[1]) * z), X, q0);
       }
     }
   }
-  if (stats) {
-    *stats = {};
-    stats->voxels = static_cast<Index>(out.size());
-    for (int z = 0; z < O[2]; ++z) {
-      stats->unconverged += plane_unconverged[z];
-      if (plane_max[z] > stats->max_residual_mm) {
-        stats->max_residual_mm = plane_max[z];
-        stats->worst_voxel = plane_worst[z];
-      }
+  InverseMappingStats stats;
+  stats.voxels = static_cast<Index>(original.size());
+  for (int z = 0; z < O[2]; ++z) {
+    stats.unconverged += plane_unconverged[z];
+    if (plane_max[z] > stats.max_residual_mm) {
+      stats.max_residual_mm = plane_max[z];
+      stats.worst_voxel = plane_worst[z];
     }
-    stats->tolerance_mm = kInverseMappingToleranceMm;
-    stats->max_iterations = max_iterations;
-    stats->newton_iterations = newton_iterations;
   }
+  stats.tolerance_mm = kInverseMappingToleranceMm;
+  stats.max_iterations = max_iterations;
+  stats.newton_iterations = newton_iterations;
+  return stats;
+}
+
+float sample_trilinear(const Volume& original, const double q[3]) {
+  const int O[3] = {original.dims.x, original.dims.y, original.dims.z};
+  int i0[3], i1[3];
+  double f[3];
+  for (int a = 0; a < 3; ++a) {
+    if (!(q[a] >= -0.5 && q[a] <= O[a] - 0.5)) return kAirHU;
+    const double s = std::clamp(snap(q[a]), 0.0, double(O[a] - 1));
+    i0[a] = static_cast<int>(std::floor(s));
+    f[a] = s - i0[a];
+    i1[a] = std::min(i0[a] + 1, O[a] - 1);
+  }
+  double v = 0;
+  for (int k = 0; k < 8; ++k) {
+    const double w = ((k & 1) ? f[0] : 1 - f[0]) * ((k & 2) ? f[1] : 1 - f[1]) * ((k & 4) ? f[2] : 1 - f[2]);
+    if (w == 0) continue;
+    v += w * original.at((k & 1) ? i1[0] : i0[0], (k & 2) ? i1[1] : i0[1], (k & 4) ? i1[2] : i0[2]);
+  }
+  return static_cast<float>(v);
+}
+
+std::int64_t nearest_voxel(Int3 dims, const double q[3]) {
+  const int n[3] = {dims.x, dims.y, dims.z};
+  std::int64_t at = 0, stride = 1;
+  for (int a = 0; a < 3; ++a) {
+    // Half a voxel beyond the first and last centres still belongs to them (as for the HU).
+    if (!(q[a] >= -0.5 && q[a] <= n[a] - 0.5)) return -1;
+    const int k = std::clamp(static_cast<int>(std::floor(q[a] + 0.5)), 0, n[a] - 1);
+    at += k * stride;
+    stride *= n[a];
+  }
+  return at;
+}
+
+std::vector<float> resample_deformed(const Volume& original, const Model& m, const std::vector<Vec3>& pos,
+                                     int max_iterations, int newton_iterations, InverseMappingStats* stats) {
+  if (original.hu.size() != original.size() || original.size() == 0)
+    throw Error("deformed volume: the original volume is empty");
+  std::vector<float> out(original.size());
+  const InverseMappingStats st = for_each_rest_position(
+      grid_of(original), m, pos, max_iterations, newton_iterations,
+      [&](std::int64_t voxel, const double*, const double* q0) { out[voxel] = sample_trilinear(original, q0); });
+  if (stats) *stats = st;
   return out;
 }
 

@@ -3,6 +3,7 @@
 // Plain C++: no ITK type appears here.
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -66,6 +67,21 @@ std::array<double, 9> mat_inverse(const std::array<double, 9>& m);
 double mat_det(const std::array<double, 9>& m);
 /// Index -> physical millimetres: direction * diag(spacing) (column a = step along index axis a).
 std::array<double, 9> index_to_physical_matrix(const std::array<double, 9>& dir, const std::array<double, 3>& sp);
+
+/// Receives one output voxel of the inverse mapping: its linear index in the output grid (first
+/// index fastest), its rest position X in lattice index units and q0, the same position as a
+/// continuous voxel index of the output grid (snapped to a voxel centre within 1e-4). Called from several threads (distinct voxels).
+using RestPositionVisitor = std::function<void(std::int64_t voxel, const double* X, const double* q0)>;
+/// The inverse mapping of the deformed lattice onto `original` (a grid in any index order): for
+/// each voxel at x the rest position X solving X + u(X) = x (see resample_deformed), handed to
+/// `visit`. One pass serves every export that needs it (deformed CT, labels, pull-back field).
+InverseMappingStats for_each_rest_position(const Grid& original, const Model& m, const std::vector<Vec3>& pos,
+                                           int max_iterations, int newton_iterations, const RestPositionVisitor& visit);
+/// Trilinear HU of `original` at continuous voxel index q; kAirHU beyond half a voxel outside.
+float sample_trilinear(const Volume& original, const double q[3]);
+/// Linear index of the voxel nearest to continuous index q in a grid of `dims`; -1 beyond half
+/// a voxel outside.
+std::int64_t nearest_voxel(Int3 dims, const double q[3]);
 
 /// Inverse-mapping resample of the deformed lattice onto the grid of `original` (any index
 /// order):

@@ -1034,12 +1034,19 @@ void write_label_map(const Input& in, const Model& m, const std::string& path) {
   if (static_cast<Index>(m.tissue.size()) != m.size())
     throw Error(path + ": label map: the model has " + std::to_string(m.tissue.size()) + " tissue labels for " +
                 std::to_string(m.size()) + " elements");
+  std::vector<unsigned char> classes(in.lattice_grid.size());
+  detail::for_each_lattice_voxel(in.lattice_grid.dims, in.order, [&](std::int64_t l, std::int64_t s) { classes[s] = m.tissue[l]; });
+  write_class_labels(in.lattice_grid, classes, path);
+}
+
+void write_class_labels(const Grid& g, const std::vector<unsigned char>& classes, const std::string& path) {
+  if (classes.size() != g.size())
+    throw Error(path + ": label map: " + std::to_string(classes.size()) + " labels for a grid of " +
+                std::to_string(g.size()) + " voxels");
   using LabelImage = itk::Image<unsigned char, 3>;
-  const Grid& g = in.lattice_grid;
   auto img = make_image<LabelImage>(g.dims, g.spacing, g.origin, g.direction);
   img->Allocate();
-  unsigned char* dst = img->GetBufferPointer();
-  detail::for_each_lattice_voxel(g.dims, in.order, [&](std::int64_t l, std::int64_t s) { dst[s] = m.tissue[l]; });
+  std::copy(classes.begin(), classes.end(), img->GetBufferPointer());
   write_image(img.GetPointer(), path, kVolumeFormats, "a label map");
   // Colour table in Slicer's .ctbl format ("index name R G B A"), beside the label map.
   const Format f = detail::format_of(path);
@@ -1058,6 +1065,128 @@ void write_label_map(const Input& in, const Model& m, const std::string& path) {
   }
   aw.sync();
   aw.commit();
+}
+
+void write_pullback_field(const Grid& g, const std::vector<float>& pullback_mm, const std::string& path) {
+  if (pullback_mm.size() != 3 * g.size())
+    throw Error(path + ": pull-back field: " + std::to_string(pullback_mm.size()) + " values for a grid of " +
+                std::to_string(g.size()) + " voxels x 3 components");
+  using VecImage = itk::Image<itk::Vector<float, 3>, 3>;
+  auto img = make_image<VecImage>(g.dims, g.spacing, g.origin, g.direction);
+  img->Allocate();
+  std::memcpy(static_cast<void*>(img->GetBufferPointer()), pullback_mm.data(), pullback_mm.size() * sizeof(float));
+  const Format f = detail::format_of(path);
+  if (f == Format::Nrrd || f == Format::Nhdr)
+    // Slicer's key: a resampling (from-parent) field says where each output voxel samples from.
+    itk::EncapsulateMetaData<std::string>(img->GetMetaDataDictionary(), "displacement field type", "resampling");
+  write_image(img.GetPointer(), path, {Format::Nifti, Format::NiftiGz, Format::Nrrd, Format::Mha},
+              "a pull-back displacement field");
+}
+
+namespace {
+// Calls f(T{}) with the integer type of an ITK component type; false for any other type.
+template <class F>
+bool with_integer_type(itk::IOComponentEnum c, F&& f) {
+  switch (c) {
+    case itk::IOComponentEnum::UCHAR: f((unsigned char){}); return true;
+    case itk::IOComponentEnum::CHAR: f((signed char){}); return true;
+    case itk::IOComponentEnum::USHORT: f((unsigned short){}); return true;
+    case itk::IOComponentEnum::SHORT: f(short{}); return true;
+    case itk::IOComponentEnum::UINT: f((unsigned int){}); return true;
+    case itk::IOComponentEnum::INT: f(int{}); return true;
+    case itk::IOComponentEnum::ULONG: f((unsigned long){}); return true;
+    case itk::IOComponentEnum::LONG: f(long{}); return true;
+    case itk::IOComponentEnum::ULONGLONG: f((unsigned long long){}); return true;
+    case itk::IOComponentEnum::LONGLONG: f((long long){}); return true;
+    default: return false;
+  }
+}
+}  // namespace
+
+LabelMap read_label_map(const std::string& path) {
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) throw Error(path + ": label map: no such file");
+  const Format f = detail::format_of(path);
+  if (f == Format::Unknown) throw Error(path + ": label map: unknown format (supported: .nii, .nii.gz, .nrrd, .nhdr, .mha, .mhd)");
+  LibraryOutputCapture capture;
+  try {
+    std::optional<detail::Geometry> nifti_grid;  // nibabel's affine rule, as for the CT
+    if (f == Format::Nifti || f == Format::NiftiGz) {
+      const detail::NiftiHeader h = read_nifti_header(path);
+      const bool scaled = h.scl_slope != 0 && (h.scl_slope != 1 || h.scl_inter != 0);
+      if (scaled)
+        throw Error(path + ": label map: NIfTI scl_slope " + std::to_string(h.scl_slope) + " / scl_inter " +
+                    std::to_string(h.scl_inter) + " scale its values; a label map needs integer labels as stored "
+                    "(scl_slope 0 or 1, scl_inter 0)");
+      nifti_grid = detail::nifti_geometry(path, h);
+    }
+    if (f == Format::Nrrd || f == Format::Nhdr) detail::check_nrrd_header(path, read_text_header(path, true));
+    if (f == Format::Mha || f == Format::Mhd) detail::check_metaimage_header(path, read_text_header(path, false));
+    itk::ImageIOBase::Pointer io = make_io(f);
+    if (!io->CanReadFile(path.c_str())) throw Error(path + ": label map: not a readable " + std::string(detail::format_name(f)) + " file");
+    io->SetFileName(path);
+    io->ReadImageInformation();
+    const unsigned nd = io->GetNumberOfDimensions();
+    if (io->GetNumberOfComponents() != 1 || io->GetPixelType() != itk::IOPixelEnum::SCALAR)
+      throw Error(path + ": label map: " + itk::ImageIOBase::GetPixelTypeAsString(io->GetPixelType()) + " image with " +
+                  std::to_string(io->GetNumberOfComponents()) + " components per voxel; a label map has one integer per voxel");
+    if (nd < 3 || (nd > 3 && io->GetDimensions(3) != 1))
+      throw Error(path + ": label map: a " + std::to_string(nd) + "-D image; a 3-D label map is needed");
+    check_read_memory(path, {io->GetDimensions(0), io->GetDimensions(1), io->GetDimensions(2)},
+                      double(io->GetComponentSize()));
+    LabelMap map;
+    map.source = path;
+    map.component_type = itk::ImageIOBase::GetComponentTypeAsString(io->GetComponentType());
+    const bool integer = with_integer_type(io->GetComponentType(), [&](auto zero) {
+      using T = decltype(zero);
+      using Img = itk::Image<T, 3>;
+      auto reader = itk::ImageFileReader<Img>::New();
+      reader->SetImageIO(io);
+      reader->SetFileName(path);
+      reader->Update();
+      Img* img = reader->GetOutput();
+      const auto size = img->GetLargestPossibleRegion().GetSize();
+      map.grid.dims = {int(size[0]), int(size[1]), int(size[2])};
+      for (int a = 0; a < 3; ++a) {
+        map.grid.spacing[a] = img->GetSpacing()[a];
+        map.grid.origin[a] = img->GetOrigin()[a];
+        for (int c = 0; c < 3; ++c) map.grid.direction[a * 3 + c] = img->GetDirection()(a, c);
+      }
+      map.bytes = sizeof(T);
+      const auto* p = reinterpret_cast<const unsigned char*>(img->GetBufferPointer());
+      map.data.assign(p, p + map.grid.size() * sizeof(T));
+    });
+    if (!integer)
+      throw Error(path + ": label map: voxels are " + map.component_type +
+                  "; a label map needs an integer type (uint8/int8 .. uint64/int64): labels are never interpolated");
+    if (nifti_grid) {
+      map.grid.spacing = nifti_grid->spacing;
+      map.grid.origin = nifti_grid->origin;
+      map.grid.direction = nifti_grid->direction;
+    }
+    return map;
+  } catch (const Error& e) {
+    throw Error(e.what() + capture.detail());
+  } catch (const itk::ExceptionObject& e) {
+    throw Error(path + ": label map: " + one_line(e) + capture.detail());
+  }
+}
+
+void write_label_values(const LabelMap& map, const std::string& path) {
+  if (map.data.size() != map.grid.size() * static_cast<std::size_t>(map.bytes))
+    throw Error(path + ": label map: " + std::to_string(map.data.size()) + " bytes for a grid of " +
+                std::to_string(map.grid.size()) + " voxels");
+  const auto type = itk::ImageIOBase::GetComponentTypeFromString(map.component_type);
+  const bool integer = with_integer_type(type, [&](auto zero) {
+    using T = decltype(zero);
+    using Img = itk::Image<T, 3>;
+    const Grid& g = map.grid;
+    auto img = make_image<Img>(g.dims, g.spacing, g.origin, g.direction);
+    img->Allocate();
+    std::memcpy(static_cast<void*>(img->GetBufferPointer()), map.data.data(), map.data.size());
+    write_image(img.GetPointer(), path, kVolumeFormats, "a label map");
+  });
+  if (!integer) throw Error(path + ": label map: " + map.component_type + " is not an integer type");
 }
 
 namespace detail {

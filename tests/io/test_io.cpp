@@ -773,3 +773,85 @@ TEST(BadInput, SingleDicomFileAndSeriesOnAFile) {
   SKIP_WITHOUT(kNifti);
   expect_error([&] { io::read_volume(kNifti, ro); }, kNifti, "--series applies only");
 }
+
+// ---- deformed labels and the pull-back field (issue 32): one inverse mapping for all -------
+
+TEST(DeformedLabels, TranslationMovesLabelsClassesAndPullbackTogether) {
+  const Volume v = make_volume({12, 10, 8}, true);  // slightly oblique, LPS-ordered
+  const io::Input in = input_of(v);
+  const Model m = model_from(in.lattice);
+  io::LabelMap map;
+  map.source = "synthetic labels";
+  map.grid = io::grid_of(v);
+  map.component_type = "short";
+  map.bytes = 2;
+  map.data.resize(v.size() * 2);
+  for (int z = 0; z < 8; ++z)
+    for (int y = 0; y < 10; ++y)
+      for (int x = 0; x < 12; ++x) {
+        const std::int16_t label = static_cast<std::int16_t>(-(1000 * z + 100 * y + x + 1));  // distinct, signed
+        std::memcpy(map.data.data() + 2 * v.index(x, y, z), &label, 2);
+      }
+  // Every element moved by +1 lattice unit along x: voxel x shows what was at x - 1.
+  std::vector<Vec3> pos = rest_positions(m);
+  for (auto& p : pos) p.x += 1.0f;
+  const io::DeformedOnInputGrid d = io::deform_on_input_grid(in, m, pos, {map});
+  ASSERT_EQ(d.labels.size(), 1u);
+  EXPECT_EQ(d.stats.unconverged, 0);
+  EXPECT_EQ(d.hu, io::detail::resample_deformed(v, m, pos));  // the same inverse mapping
+  const auto label_at = [](const io::LabelMap& l, std::size_t i) {
+    std::int16_t value;
+    std::memcpy(&value, l.data.data() + 2 * i, 2);
+    return value;
+  };
+  for (int z = 0; z < 8; ++z)
+    for (int y = 0; y < 10; ++y)
+      for (int x = 0; x < 12; ++x) {
+        const std::size_t i = static_cast<std::size_t>(v.index(x, y, z));
+        const std::size_t from = static_cast<std::size_t>(v.index(x - 1, y, z));
+        ASSERT_EQ(label_at(d.labels[0], i), x == 0 ? 0 : label_at(map, from)) << x << "," << y << "," << z;
+        ASSERT_EQ(d.classes[i], x == 0 ? 0 : m.tissue[from]) << x << "," << y << "," << z;
+        // Pull-back: one voxel back along index axis x, in millimetres.
+        for (int r = 0; r < 3; ++r)
+          ASSERT_NEAR(d.pullback_mm[3 * i + r], -v.direction[r * 3] * v.spacing[0], 1e-4) << r;
+      }
+}
+
+TEST(DeformedLabels, LabelMapsKeepTypeAndGridThroughEveryFormat) {
+  Scratch s;
+  const Volume v = make_volume({7, 5, 4}, true);
+  io::LabelMap map;
+  map.grid = io::grid_of(v);
+  map.component_type = "unsigned_int";
+  map.bytes = 4;
+  map.data.resize(v.size() * 4);
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    const std::uint32_t label = 4000000000u - static_cast<std::uint32_t>(i);
+    std::memcpy(map.data.data() + 4 * i, &label, 4);
+  }
+  for (const char* ext : {".nii.gz", ".nrrd", ".mha"}) {
+    const std::string path = s / (std::string("labels") + ext);
+    io::write_label_values(map, path);
+    const io::LabelMap back = io::read_label_map(path);
+    EXPECT_EQ(back.component_type, "unsigned_int") << ext;
+    EXPECT_EQ(back.data, map.data) << ext;
+    EXPECT_EQ(back.grid.dims, map.grid.dims) << ext;
+    const io::Input in = input_of(v);
+    EXPECT_NO_THROW(io::label_map_on_input_grid(back, in)) << ext;
+  }
+  // A grid 0.01 mm away is another grid: refused, naming the map, the input and both grids.
+  io::LabelMap shifted = map;
+  shifted.source = "shifted.nii.gz";
+  shifted.grid.origin[1] += 0.01;
+  const std::string msg = error_of([&] { io::label_map_on_input_grid(shifted, input_of(v)); });
+  EXPECT_NE(msg.find("shifted.nii.gz"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("synthetic"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("label map 7x5x4 voxels"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("input 7x5x4 voxels"), std::string::npos) << msg;
+  // Float voxels are not labels.
+  const std::string floats = s / "float.nii.gz";
+  Volume f = v;
+  f.hu[0] = 0.5f;
+  io::write_volume(f, floats);
+  expect_error([&] { io::read_label_map(floats); }, floats, "integer type");
+}
