@@ -163,8 +163,9 @@ order: {"axis", "reversed"}: LPS axis p runs along stored axis axis[p], backward
       "as `hpcm run --export` does; returns the paths, the field's Jacobian check (displacement_jacobian), the "
       "deformed CT's inverse-mapping residuals (inverse_mapping) and the problems found (empty when clean).");
 
-  m.def("warp_labels", [](const io::Input& in, Simulation& sim, const std::string& labels, py::object path) {
+  m.def("warp_labels", [](const io::Input& in, GuardedSimulation& sim, const std::string& labels, py::object path) {
         io::LabelMap map = io::label_map_on_input_grid(io::read_label_map(labels), in);
+        SimulationTurn turn(sim);
         io::DeformedOnInputGrid d = io::deform_on_input_grid(in, sim.model(), positions_of(sim), {map});
         if (!path.is_none()) io::write_label_values(d.labels[0], path.cast<std::string>());
         return label_array(std::move(d.labels[0]));
@@ -174,7 +175,8 @@ order: {"axis", "reversed"}: LPS axis p runs along stored axis axis[p], backward
       "mapping (0 where the rest position lies outside the input). Returns the deformed labels, same dtype, "
       "indexed [x, y, z] in the input's own order; writes them to `path` (same type) when given. "
       "A float label map or one on another grid raises hpcm.Error naming both grids.");
-  m.def("pullback_mm", [](const io::Input& in, Simulation& sim) {
+  m.def("pullback_mm", [](const io::Input& in, GuardedSimulation& sim) {
+        SimulationTurn turn(sim);
         io::DeformedOnInputGrid d = io::deform_on_input_grid(in, sim.model(), positions_of(sim));
         return lattice_array(std::move(d.pullback_mm), d.grid.dims, 3);
       }, py::arg("input"), py::arg("simulation"),

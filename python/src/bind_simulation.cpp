@@ -403,7 +403,7 @@ Several threads may call one Simulation: the calls run one at a time.)")
            "numbers), an element index, or \"auto\" (the paper's grab point).")
       .def("move_tool", [](GuardedSimulation& s, py::handle offset, py::handle offset_mm) {
             if (offset.is_none() == offset_mm.is_none())
-              throw Error("move_tool: give offset (lattice units) or offset_mm (millimetres), exactly one");
+              throw Error("move_tool: give the tool offset (lattice units) or offset_mm (millimetres), exactly one");
             const bool mm = offset.is_none();
             const Vec3 o = mm ? offset_from(offset_mm, "tool offset_mm", "millimetres")
                               : offset_from(offset, "tool offset", "lattice units");
