@@ -1039,7 +1039,9 @@ void write_label_map(const Input& in, const Model& m, const std::string& path) {
   auto img = make_image<LabelImage>(g.dims, g.spacing, g.origin, g.direction);
   img->Allocate();
   unsigned char* dst = img->GetBufferPointer();
-  detail::for_each_lattice_voxel(g.dims, in.order, [&](std::int64_t l, std::int64_t s) { dst[s] = m.tissue[l]; });
+  detail::for_each_lattice_voxel(g.dims, in.order, [&](std::int64_t l, std::int64_t s) {
+    dst[s] = m.counted(l) ? m.tissue[l] : kOutsideLabel;  // SPEC §3: outside elements have their own label
+  });
   write_image(img.GetPointer(), path, kVolumeFormats, "a label map");
   // Colour table in Slicer's .ctbl format ("index name R G B A"), beside the label map.
   const Format f = detail::format_of(path);
@@ -1053,6 +1055,7 @@ void write_label_map(const Input& in, const Model& m, const std::string& path) {
     for (int t = 0; t < kTissueCount; ++t)
       out << t << ' ' << tissue_name(t) << ' ' << rgba[t][0] << ' ' << rgba[t][1] << ' ' << rgba[t][2] << ' '
           << rgba[t][3] << '\n';
+    out << int(kOutsideLabel) << " outside 90 110 140 255\n";  // not the body (air noise, the table)
     out.close();
     if (!out) throw Error(ctbl + ": cannot write the colour table (disk full?)");
   }
