@@ -109,12 +109,15 @@ struct Input {
 
 /// How find_body finds the body, as the reports say it.
 inline constexpr const char* kBodyMethod =
-    "largest 6-connected region of HU >= -500 after a binary opening with a ball of radius 2 lattice units, holes filled";
+    "largest 6-connected region of HU >= -500 after a binary opening with a ball of radius 2 lattice units, "
+    "its surface within that radius given back, holes filled";
 /// The body on a lattice (SPEC §3), with ITK's filters on its grid: threshold HU >= -500, binary
 /// opening with a ball of radius 2 elements (cuts contacts up to about 4 elements thin: pads,
 /// blankets, cables, the 1-element shells of a table), 6-connected components (the lattice's
-/// links), the largest one, 3D hole filling (lungs, bowel gas). 1 = body, 0 = outside; all 0
-/// when nothing survives the opening (a test object without a body).
+/// links), the largest one, a dilation by the same ball kept to HU >= -500 (gives back the
+/// body's own surface that the opening shaved off, not the cut contacts beyond its radius), 3D
+/// hole filling (lungs, bowel gas). 1 = body, 0 = outside; all 0 when nothing survives the
+/// opening (a test object without a body).
 std::vector<std::uint8_t> find_body(const Volume& lattice);
 
 /// Crops `stored` to the ROI (its own indices), block-averages by the factor in its own index

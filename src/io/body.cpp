@@ -1,6 +1,8 @@
 // The body on the lattice (SPEC §3, "The body, and what is not tissue") with ITK's filters. Its
 // own translation unit: the morphology templates are heavy, and nothing else here needs them.
+#include <itkAndImageFilter.h>
 #include <itkBinaryBallStructuringElement.h>
+#include <itkBinaryDilateImageFilter.h>
 #include <itkBinaryFillholeImageFilter.h>
 #include <itkBinaryMorphologicalOpeningImageFilter.h>
 #include <itkBinaryThresholdImageFilter.h>
@@ -71,8 +73,22 @@ std::vector<std::uint8_t> find_body(const Volume& lattice) {
     largest->SetInsideValue(1);
     largest->SetOutsideValue(0);
 
+    // The opening also shaves the body's own surface where it is sharper than the ball (skin
+    // folds, the navel, edges at coarse lattices); a detached bit of skin would then be
+    // anchored as an outside object. Give back what the opening took within its own radius of
+    // the body (a dilation by the same ball, kept to the non-air elements); the contacts it cut
+    // stay cut beyond that radius.
+    auto grow = itk::BinaryDilateImageFilter<MaskImage, MaskImage, Ball>::New();
+    grow->SetInput(largest->GetOutput());
+    grow->SetKernel(ball);
+    grow->SetForegroundValue(1);
+    grow->SetBackgroundValue(0);
+    auto regrown = itk::AndImageFilter<MaskImage, MaskImage, MaskImage>::New();
+    regrown->SetInput1(grow->GetOutput());
+    regrown->SetInput2(threshold->GetOutput());
+
     auto fill = itk::BinaryFillholeImageFilter<MaskImage>::New();  // lungs, bowel gas
-    fill->SetInput(largest->GetOutput());
+    fill->SetInput(regrown->GetOutput());
     fill->SetForegroundValue(1);
     fill->SetFullyConnected(false);
     fill->Update();

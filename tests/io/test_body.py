@@ -7,7 +7,8 @@ with HPCM_CLI (the hpcm binary) and HPCM_SHARED_DATA (../shared/data) in the env
 The reference reads the CT with nibabel (the DICOM series with pydicom), block-averages it by
 the same factor and finds the body with scipy.ndimage: HU >= -500, an opening with a ball of
 radius 2 elements (erosion with the image border counted as foreground, as ITK does), the
-largest 6-connected component, holes filled. hpcm's count must be within 2 % of it. The
+largest 6-connected component, given back what the opening took within its radius (a dilation
+by the same ball, kept to HU >= -500), holes filled. hpcm's count must be within 2 % of it. The
 phantom cases always run; the real CTs skip when ../shared/data is absent.
 """
 import os
@@ -60,7 +61,10 @@ def scipy_body(hu):
         return np.zeros_like(dense)
     sizes = np.bincount(labels.ravel())
     sizes[0] = 0
-    return ndimage.binary_fill_holes(labels == sizes.argmax(), six)
+    largest = labels == sizes.argmax()
+    # What the opening shaved off the body's surface within its radius comes back (non-air only).
+    regrown = ndimage.binary_dilation(largest, ball) & dense
+    return ndimage.binary_fill_holes(regrown, six)
 
 
 def check_against_reference(args, hu):
