@@ -111,7 +111,7 @@ void register_info(CLI::App& app) {
     Volume searched;
     const Volume* with_body = &lattice;
 #if defined(HPCM_WITH_ITK)
-    if (lattice.body.empty()) {  // the input as stored, not yet searched
+    if (!reduced) {  // the input as stored: searched as run and experiment will (a phantom's outline aside)
       searched.hu = lattice.hu;
       searched.dims = lattice.dims;
       searched.body = io::find_body(lattice);
