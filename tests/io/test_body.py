@@ -119,3 +119,19 @@ def dicom_stack(folder):
 def test_dicom_series_half_resolution_matches_scipy():
     hu = dicom_stack(DICOM)
     check_against_reference([str(DICOM), "--downsample", "2"], block_mean(hu, 2))
+
+
+def test_experiment_summary_says_what_was_left_out(tmp_path):
+    import json
+    phantom = ["--phantom", "24,24,16", "--phantom-variant", "table"]
+    body, air, objects = hpcm_body(phantom)
+    out = subprocess.run([HPCM, "experiment", *phantom, "--no-report", "--out", str(tmp_path / "x")],
+                         capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    assert "note: body: %d elements" % body in out.stderr
+    s = json.loads((tmp_path / "x" / "summary.json").read_text())
+    b = s["body"]
+    assert b["search"] == "found"
+    assert (b["counted_elements"], b["left_out"]["outside_air"], b["left_out"]["outside_objects"]) == (body, air, objects)
+    assert sum(b["counted_class_count"].values()) == body
+    assert b["why"].startswith("body: %d elements" % body)
