@@ -396,6 +396,10 @@ def write_report(out_md, d, curves, n, t2, t3, summary, warnings, activity=None)
     L.append("")
     L.append(f"- Lattice: {dims[0]} x {dims[1]} x {dims[2]} = {lat['elements']:,} elements")
     L.append(f"- Source: {lat['source']}")
+    body = summary.get("body")
+    if isinstance(body, dict) and isinstance(body.get("why"), str):
+        # SPEC §3: the statistics below count the body only; say what was left out and why.
+        L.append(f"- Counted elements: {body['why']}")
     L.append(f"- Backend: {summary['backend']}")
     L.append(f"- Machine: {summary['machine']}")
     scen = summary.get("scenario")

@@ -82,6 +82,8 @@ def write_inputs(d, curves):
     summary = {
         "lattice": {"dims": [96, 96, 64], "elements": 96 * 96 * 64, "source": "phantom 96,96,64"},
         "backend": "cpu",
+        "body": {"search": "found", "why": "body: 400000 elements (selftest); left out of the statistics: 189824 outside "
+                                           "air (HU < -500, free) and 0 outside objects (HU >= -500, anchored)"},
         "machine": "selftest machine (2 threads)",
         "scenario": {"name": "paper_protocol", "frames": 150, "release_frame": 30},
         "params": {"dynamics": {"alpha": 0.85, "b0": 0.15}},
@@ -152,7 +154,8 @@ def test_good(root):
                        "selftest machine", "## Table 2", "## Table 3", "![Figure 3", "(figure3.png)", "(figure4.png)",
                        "## Behaviour checks", "`A_no_overshoot`", "`settle_2000`", "✓", "✗", "NOT all hold",
                        "0.692066", "0.000856", "0.001233", "1,228,800", "RTX 4070", "2.64", "3.23", "3.15",
-                       "compare the shapes", "| C | skin & fat |"]:
+                       "compare the shapes", "| C | skin & fat |",
+                       "Counted elements: body: 400000 elements (selftest); left out of the statistics: 189824"]:
             check(needle in md, f"report.md contains {needle!r}")
         # Table 2's skin&fat peak under C appears with six decimals.
         check("0.0" in md and "| C | bone | 0 |" in md, "bone Initial under C is printed as 0")

@@ -39,6 +39,18 @@ nlohmann::json per_tissue_json(const PerTissue& v) {
   return j;
 }
 
+// SPEC §3: which elements the statistics count, and which were left out and why.
+nlohmann::json body_json(const Model& m) {
+  const BodySummary& b = m.body;
+  const char* search = b.search == BodySummary::Search::Found ? "found"
+                       : b.search == BodySummary::Search::NoBody ? "none" : "not searched";
+  nlohmann::json j = {{"search", search}, {"method", b.method}, {"counted_elements", b.body},
+                      {"left_out", {{"outside_air", b.outside_air}, {"outside_objects", b.outside_objects}}},
+                      {"why", b.describe()}, {"counted_class_count", nlohmann::json::object()}};
+  for (int t = 0; t < kTissueCount; ++t) j["counted_class_count"][tissue_name(t)] = m.counted_class_count[t];
+  return j;
+}
+
 nlohmann::json params_json(const Params& p) {
   nlohmann::json j;
   j["tissue"] = {{"t1", p.tissue.t1}, {"t2", p.tissue.t2}, {"t3", p.tissue.t3}};
@@ -116,6 +128,7 @@ void register_experiment(CLI::App& app) {
     const Volume v = load_volume(o->source);
     check_lattice_fits(v, o->source, kExperimentBytesPerElement);
     const Model m = build_model(v, p);
+    std::fprintf(stderr, "note: %s\n", m.body.describe().c_str());
     if (want_progress())
       eo.progress = [](int c, int done, int total) {
         if (done % 10 == 0 || done == total) progress_bar(std::string("condition ") + char('A' + c), done, total);
@@ -141,6 +154,7 @@ void register_experiment(CLI::App& app) {
                                                         : o->source.input},
                      {"downsample", o->source.downsample}, {"class_count", {}}};
     for (int t = 0; t < kTissueCount; ++t) js["lattice"]["class_count"][tissue_name(t)] = m.class_count[t];
+    js["body"] = body_json(m);
     js["backend"] = backend_name(eo.backend);
     js["machine"] = machine_description();
     js["scenario"] = {{"name", eo.scenario.name}, {"frames", eo.scenario.frames}, {"release_frame", r.release_frame},

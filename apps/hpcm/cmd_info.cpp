@@ -107,6 +107,19 @@ void register_info(CLI::App& app) {
                 "thresholds", p.tissue.t1, p.tissue.t2, p.tissue.t3);
     for (int t = 0; t < kTissueCount; ++t)
       std::printf("  %-13s%12lld  %6.2f %%\n", tissue_name(t), count[t], 100.0 * double(count[t]) / double(lattice.size()));
+    // SPEC §3: the elements the statistics will count, and what is left out.
+    Volume searched;
+    const Volume* with_body = &lattice;
+#if defined(HPCM_WITH_ITK)
+    if (!reduced) {  // the input as stored: searched as run and experiment will (a phantom's outline aside)
+      searched.hu = lattice.hu;
+      searched.dims = lattice.dims;
+      searched.body = io::find_body(lattice);
+      searched.body_method = io::kBodyMethod;
+      with_body = &searched;
+    }
+#endif
+    std::printf("%s\n", summarize_body(*with_body).describe().c_str());
   });
 }
 

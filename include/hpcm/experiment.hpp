@@ -55,6 +55,7 @@ struct ExperimentResult {
   Params params;                 ///< full parameter set used (mode per condition overrides)
   Int3 dims;
   Index elements = 0;
+  BodySummary body;              ///< the elements the statistics and motion checks count (SPEC §3)
   Index grab_centre = -1;
   int release_frame = 0;         ///< first frame after release
   int recorded_frames = 0;       ///< frames after release that Table 2 covers

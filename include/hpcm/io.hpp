@@ -107,10 +107,24 @@ struct Input {
   Int3 left_out{};      ///< stored voxels per axis beyond the last full block (not in the lattice)
 };
 
+/// How find_body finds the body, as the reports say it.
+inline constexpr const char* kBodyMethod =
+    "largest 6-connected region of HU >= -500 after a binary opening with a ball of radius 2 lattice units, "
+    "its surface within that radius given back, holes filled";
+/// The body on a lattice (SPEC §3), with ITK's filters on its grid: threshold HU >= -500, binary
+/// opening with a ball of radius 2 elements (cuts contacts up to about 4 elements thin: pads,
+/// blankets, cables, the 1-element shells of a table), 6-connected components (the lattice's
+/// links), the largest one, a dilation by the same ball kept to HU >= -500 (gives back the
+/// body's own surface that the opening shaved off, not the cut contacts beyond its radius), 3D
+/// hole filling (lungs, bowel gas). 1 = body, 0 = outside; all 0 when nothing survives the
+/// opening (a test object without a body).
+std::vector<std::uint8_t> find_body(const Volume& lattice);
+
 /// Crops `stored` to the ROI (its own indices), block-averages by the factor in its own index
 /// order (complete blocks only; see downsample()) and reorients the result to LPS order.
 /// Throws hpcm::Error naming the setting ("roi", "downsample factor") and the valid range.
 Input prepare_input(Volume stored, const InputOptions& opt, const std::string& source);
+/// The lattice carries its body (find_body) for build_model().
 /// Reads `path` (read_volume_as_stored) and prepares it.
 Input load_input(const std::string& path, const InputOptions& opt = {});
 
@@ -153,8 +167,11 @@ void write_displacement_field(const Input& in, const Model& m, const std::vector
 /// The displacement in millimetres as written by write_displacement_field: 3 floats per voxel
 /// of `in.lattice_grid` (interleaved, first index fastest).
 std::vector<float> displacement_on_input_grid(const Input& in, const Model& m, const std::vector<Vec3>& pos);
-/// Tissue class label map (uint8: 0 air .. 3 bone) on `in.lattice_grid`, with a Slicer colour
-/// table (.ctbl) written beside it.
+/// Label of the elements outside the body (SPEC §3) in write_label_map.
+inline constexpr unsigned char kOutsideLabel = 4;
+/// Tissue class label map (uint8: 0 air .. 3 bone for the body's elements, kOutsideLabel = 4
+/// "outside" for the rest) on `in.lattice_grid`, with a Slicer colour table (.ctbl) written
+/// beside it.
 void write_label_map(const Input& in, const Model& m, const std::string& path);
 
 /// Fold check of a displacement field u (millimetres, LPS components, 3 interleaved floats per

@@ -15,6 +15,25 @@
 
 namespace hpcm {
 
+/// Where an element lies relative to the body (SPEC §3, "The body, and what is not tissue").
+enum class Region : std::uint8_t {
+  Body = 0,           ///< the patient: counted in every per-class statistic and check
+  OutsideAir = 1,     ///< outside the body, HU < -500 (air and its noise, foam): free, not counted
+  OutsideObject = 2,  ///< outside the body, HU >= -500 (the CT table, pads): anchored like bone, not counted
+};
+
+/// The body search's outcome, for `hpcm info`, summary.json and the report.
+struct BodySummary {
+  enum class Search { NotSearched, Found, NoBody };
+  Search search = Search::NotSearched;
+  std::string method;           ///< how the body was found (empty when not searched)
+  Index body = 0;               ///< elements in the body (every element when there is none)
+  Index outside_air = 0;        ///< left out: outside the body, HU < -500
+  Index outside_objects = 0;    ///< left out and anchored: outside the body, HU >= -500
+  /// One line: how many elements were left out and why, or why none were.
+  std::string describe() const;
+};
+
 struct Model {
   Int3 dims;
   std::array<double, 3> spacing{1, 1, 1};  ///< mm per lattice unit (after down-sampling)
@@ -36,6 +55,18 @@ struct Model {
   /// Limits of the link between i and its +a neighbour.
   const LinkLimits& link(int a, Index i) const { return link_table[link_index[a][static_cast<std::size_t>(i)]]; }
   std::array<Index, kTissueCount> class_count{};  ///< elements per class
+  /// Region per element (see Region); empty when no body was found or searched: then every
+  /// element is counted.
+  std::vector<std::uint8_t> region;
+  BodySummary body;
+  /// Elements per class that the per-class statistics count: the body's (class_count without a body).
+  std::array<Index, kTissueCount> counted_class_count{};
+  /// Whether element i is counted in the per-class statistics and the motion checks.
+  bool counted(Index i) const { return region.empty() || region[static_cast<std::size_t>(i)] == std::uint8_t(Region::Body); }
+  /// Whether element i is an outside object (anchored like bone).
+  bool outside_object(Index i) const {
+    return !region.empty() && region[static_cast<std::size_t>(i)] == std::uint8_t(Region::OutsideObject);
+  }
 
   Index size() const { return static_cast<Index>(dims.x) * dims.y * dims.z; }
   Index index(int x, int y, int z) const { return x + static_cast<Index>(dims.x) * (y + static_cast<Index>(dims.y) * z); }
@@ -53,6 +84,18 @@ struct Model {
 /// Builds the model from a volume (already cropped / down-sampled) and validated params.
 /// Throws hpcm::Error on an empty volume or invalid params.
 Model build_model(const Volume& v, const Params& p);
+
+/// HU at and above which an element is not air for the body search and the §7 surface test.
+constexpr float kBodyHu = -500.0f;
+
+/// Sets m.region and m.body from a body mask on m's grid (1 = body; empty = not searched).
+/// A mask without any body element means "no body": every element stays counted. Outside
+/// elements are split by HU (kBodyHu) into outside air and outside objects. Call
+/// rebuild_materials afterwards (it counts the classes). Throws if the mask has the wrong size.
+void set_body(Model& m, const std::vector<std::uint8_t>& body_mask, const std::string& method);
+
+/// The same summary for a volume (v.body on v's grid), without building a model.
+BodySummary summarize_body(const Volume& v);
 
 /// Re-derives tissue classes and link limits after a parameter change (same volume).
 void rebuild_materials(Model& m, const Params& p);

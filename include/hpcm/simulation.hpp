@@ -33,7 +33,7 @@ struct FrameReport {
   int propagate_sweeps = 0, relax_sweeps = 0;
   bool propagate_converged = true;
   double chainmail_ms = 0, inertia_ms = 0, snapshot_ms = 0, sim_total_ms = 0;
-  PerTissue mean_speed{}, max_speed{};  ///< |X_end(t) - X_end(t-1)| per class
+  PerTissue mean_speed{}, max_speed{};  ///< |X_end(t) - X_end(t-1)| per class, over the body's elements (SPEC §3)
 };
 
 /// Largest grab radius, lattice units (along every axis for a radius in millimetres).
@@ -133,6 +133,12 @@ class Simulation {
   };
   std::uint64_t positions_version_ = 0;
   Metric link_metric_, jacobian_metric_;
+  // With a body (Model::region), the per-class speeds count the body only; the backends reduce
+  // over every element, so they are measured here from the frame-end positions, kept for the
+  // next frame while nothing else moved them.
+  std::vector<Vec3> speed_ref_;
+  int speed_ref_frame_ = -1;
+  std::uint64_t speed_ref_version_ = 0;
 };
 
 }  // namespace hpcm

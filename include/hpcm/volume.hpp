@@ -2,6 +2,8 @@
 // A CT volume in Hounsfield units with its physical geometry, in LPS index order
 // (x: right->left, y: anterior->posterior, z: inferior->superior).
 #include <array>
+#include <cstdint>
+#include <string>
 #include <vector>
 
 #include "hpcm/types.hpp"
@@ -14,6 +16,11 @@ struct Volume {
   std::array<double, 3> origin{0, 0, 0};       ///< mm, physical position of voxel (0,0,0), LPS
   std::array<double, 9> direction{1, 0, 0, 0, 1, 0, 0, 0, 1};  ///< row-major 3x3, column a = axis a
   std::vector<float> hu;                       ///< HU, x fastest
+  /// The body on this grid (SPEC §3), 1 per body voxel, 0 outside; empty when it was not
+  /// searched. Set by whoever knows it for this very grid (the IO layer on the lattice, the
+  /// phantom generator); crop() and downsample() leave it empty (a new grid).
+  std::vector<std::uint8_t> body;
+  std::string body_method;                     ///< how `body` was found, for the reports
 
   std::size_t size() const { return static_cast<std::size_t>(dims.x) * dims.y * dims.z; }
   Index index(int x, int y, int z) const { return x + static_cast<Index>(dims.x) * (y + static_cast<Index>(dims.y) * z); }

@@ -62,6 +62,9 @@ order: {"axis", "reversed"}: LPS axis p runs along stored axis axis[p], backward
       .def_readonly("source", &io::Input::source)
       .def_readonly("stored", &io::Input::stored)
       .def_readonly("lattice", &io::Input::lattice)
+      .def_property_readonly("body", [](const io::Input& in) { return bool_lattice(in.lattice.body, in.lattice.dims); },
+                             "the body on the lattice (SPEC §3), indexed [x, y, z] in LPS order: read-only bool array "
+                             "(a copy); elements outside it are left out of every per-class statistic")
       .def_property_readonly("lattice_grid", [](const io::Input& in) { return grid_dict(in.lattice_grid); })
       .def_property_readonly("order", [](const io::Input& in) {
             py::dict d;

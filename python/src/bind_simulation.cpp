@@ -388,6 +388,24 @@ Several threads may call one Simulation: the calls run one at a time.)")
             const Model& mdl = self.cast<GuardedSimulation&>().model();
             return lattice_view(mdl.tissue.data(), mdl.dims, 1, self);
           }, "tissue class per element (0 air .. 3 bone), (nx, ny, nz) uint8, read-only view (no copy)")
+      .def_property_readonly("body", in_turn(+[](Simulation& s) {
+            const Model& mdl = s.model();
+            std::vector<std::uint8_t> counted(static_cast<std::size_t>(mdl.size()));
+            for (Index i = 0; i < mdl.size(); ++i) counted[static_cast<std::size_t>(i)] = mdl.counted(i) ? 1 : 0;
+            return bool_lattice(std::move(counted), mdl.dims);
+          }), "elements the per-class statistics count (SPEC §3: the body; every element when there is none), "
+             "(nx, ny, nz) read-only bool array (a copy)")
+      .def_property_readonly("body_summary", in_turn(+[](Simulation& s) {
+            const BodySummary& b = s.model().body;
+            py::dict d;
+            d["search"] = b.search == BodySummary::Search::Found ? "found"
+                          : b.search == BodySummary::Search::NoBody ? "none" : "not searched";
+            d["counted_elements"] = b.body;
+            d["outside_air"] = b.outside_air;
+            d["outside_objects"] = b.outside_objects;
+            d["why"] = b.describe();
+            return d;
+          }), "how many elements were left out of the statistics (outside air, anchored outside objects) and why")
       .def("paper_grab_centre", in_turn(+[](Simulation& s) { return int3_tuple(s.model().coords(paper_grab_centre(s.model()))); }),
            "The paper's grab point: the anterior body surface on the central axial slice, x = nx/2.")
       .def("grab", [](GuardedSimulation& s, py::handle centre, std::optional<float> radius, std::optional<float> radius_mm) {

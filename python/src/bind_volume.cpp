@@ -107,6 +107,13 @@ indexed [x, y, z]; `direction` columns are the physical directions of the index 
             return lattice_view(v.hu.data(), v.dims, 1, self, true);
           },
           "HU values indexed [x, y, z] (float32, a writable view of the volume's memory, no copy)")
+      .def_property_readonly(
+          "body", [](const Volume& v) -> py::object {
+            if (v.body.empty()) return py::none();
+            return bool_lattice(v.body, v.dims);
+          },
+          "The body found on this grid (SPEC §3) indexed [x, y, z], a read-only bool array (a copy); None when "
+          "it was not searched (a Volume made from an array). All False: no body (statistics count every element).")
       .def("index_to_physical", [](const Volume& v, double i, double j, double k) {
             const auto p = v.index_to_physical(i, j, k);
             return py::make_tuple(p[0], p[1], p[2]);

@@ -94,6 +94,13 @@ py::array lattice_array(std::vector<T>&& values, Int3 dims, int components) {
   return py::array(py::dtype::of<T>(), shape, strides, owned->data(), free_when_done);
 }
 
+/// A 0/1 mask as a read-only bool array indexed [x, y, z] (a copy).
+inline py::array bool_lattice(std::vector<std::uint8_t> mask, Int3 dims) {
+  py::array a = lattice_array(std::move(mask), dims, 1).attr("astype")("bool");
+  a.attr("setflags")(py::arg("write") = false);
+  return a;
+}
+
 /// Vec3 buffers as float arrays of 3 components.
 inline py::array vec3_array(std::vector<Vec3>&& v, Int3 dims) {
   auto* owned = new std::vector<Vec3>(std::move(v));

@@ -45,8 +45,13 @@ void rebuild_materials(Model& m, const Params& p) {
     m.tissue[i] = static_cast<std::uint8_t>(p.tissue.classify(m.hu[i]));
     m.tau[i] = p.material.tau(m.hu[i]);
   }
-  for (Index i = 0; i < n; ++i) ++counts[m.tissue[i]];
+  std::array<Index, kTissueCount> counted{};
+  for (Index i = 0; i < n; ++i) {
+    ++counts[m.tissue[i]];
+    if (m.counted(i)) ++counted[m.tissue[i]];
+  }
   m.class_count = counts;
+  m.counted_class_count = counted;
   const LinkGrid grid(p.material);
   m.link_table.resize(static_cast<std::size_t>(grid.levels) + 1);
   m.link_tau.resize(m.link_table.size());
@@ -72,6 +77,61 @@ void rebuild_materials(Model& m, const Params& p) {
       }
 }
 
+std::string BodySummary::describe() const {
+  switch (search) {
+    case Search::NotSearched:
+      return "body: not searched (no image library for this input); statistics cover every element";
+    case Search::NoBody:
+      return "body: none found (" + method + "); statistics cover every element";
+    case Search::Found:
+      break;
+  }
+  return "body: " + std::to_string(body) + " elements (" + method + "); left out of the statistics: " +
+         std::to_string(outside_air) + " outside air (HU < -500, free) and " + std::to_string(outside_objects) +
+         " outside objects such as the table (HU >= -500, anchored)";
+}
+
+namespace {
+Region region_of(bool in_body, float hu) {
+  if (in_body) return Region::Body;
+  return hu >= kBodyHu ? Region::OutsideObject : Region::OutsideAir;
+}
+
+// Region per element and the summary; `region` stays empty when there is no body.
+BodySummary classify_body(const std::vector<float>& hu, const std::vector<std::uint8_t>& body_mask,
+                          const std::string& method, std::vector<std::uint8_t>* region) {
+  BodySummary s;
+  s.body = static_cast<Index>(hu.size());
+  if (region) region->clear();
+  if (body_mask.empty()) return s;
+  if (body_mask.size() != hu.size())
+    throw Error("body mask has " + std::to_string(body_mask.size()) + " elements for a lattice of " +
+                std::to_string(hu.size()));
+  s.method = method;
+  const Index inside = std::count_if(body_mask.begin(), body_mask.end(), [](std::uint8_t b) { return b != 0; });
+  if (inside == 0) {
+    s.search = BodySummary::Search::NoBody;  // a test object: everything counts
+    return s;
+  }
+  s.search = BodySummary::Search::Found;
+  s.body = inside;
+  if (region) region->resize(body_mask.size());
+  for (std::size_t i = 0; i < body_mask.size(); ++i) {
+    const Region r = region_of(body_mask[i] != 0, hu[i]);
+    if (region) (*region)[i] = static_cast<std::uint8_t>(r);
+    if (r == Region::OutsideAir) ++s.outside_air;
+    if (r == Region::OutsideObject) ++s.outside_objects;
+  }
+  return s;
+}
+}  // namespace
+
+void set_body(Model& m, const std::vector<std::uint8_t>& body_mask, const std::string& method) {
+  m.body = classify_body(m.hu, body_mask, method, &m.region);
+}
+
+BodySummary summarize_body(const Volume& v) { return classify_body(v.hu, v.body, v.body_method, nullptr); }
+
 Model build_model(const Volume& v, const Params& p) {
   validate_volume(v, "volume");
   p.validate();
@@ -85,6 +145,7 @@ Model build_model(const Volume& v, const Params& p) {
   m.origin = v.origin;
   m.direction = v.direction;
   m.hu = v.hu;
+  set_body(m, v.body, v.body_method);
   rebuild_materials(m, p);
   return m;
 }
@@ -92,7 +153,7 @@ Model build_model(const Volume& v, const Params& p) {
 Index paper_grab_centre(const Model& m) {
   const int z = m.dims.z / 2, x = m.dims.x / 2;
   for (int y = 0; y < m.dims.y; ++y)
-    if (m.hu[static_cast<std::size_t>(m.index(x, y, z))] >= -500.0f) return m.index(x, y, z);
+    if (m.hu[static_cast<std::size_t>(m.index(x, y, z))] >= kBodyHu) return m.index(x, y, z);
   throw Error("paper protocol: no element with HU >= -500 on the line x = " + std::to_string(x) +
               ", z = " + std::to_string(z) + " (is there a body in the volume?)");
 }

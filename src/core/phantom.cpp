@@ -79,7 +79,9 @@ WallLayers wall_layers(PhantomVariant variant, double cell) {
 // x right->left, y anterior->posterior, z inferior->superior). `cell` is the size of one
 // element in normalised y units, so thin layers stay at least about one element thick.
 // The standard variant's arithmetic is the original phantom's, unchanged (tests compare it).
-float phantom_hu(double x, double y, double z, double cell, PhantomVariant variant) {
+// `in_body` is set to whether the point lies in the body (not the air around it, not the table).
+float phantom_hu(double x, double y, double z, double cell, PhantomVariant variant, bool& in_body) {
+  in_body = false;
   constexpr float kAir = -1000, kSkin = 10, kFat = -100, kMuscle = 50, kLiver = 60, kSpleen = 45,
                   kKidney = 30, kBowel = 20, kGas = -700, kAorta = 40, kCancellous = 330, kCortical = 1000,
                   kDisc = 90, kVisceralFat = -90;
@@ -91,6 +93,7 @@ float phantom_hu(double x, double y, double z, double cell, PhantomVariant varia
     if (y >= top && y < top + thickness && std::abs(x - 0.5) < 0.45)
       return (y < top + shell || y >= top + thickness - shell) ? kTableShell : kTableFoam;
   }
+  in_body = true;  // until the outline tests below say otherwise
   // Body: an elliptic cylinder whose width breathes slightly along z.
   const double cx = 0.5, cy = 0.53;
   const double ax = 0.40 * (1.0 - 0.04 * std::cos(6.283 * z)), ay = 0.28 * (1.0 - 0.03 * std::cos(6.283 * z));
@@ -104,11 +107,11 @@ float phantom_hu(double x, double y, double z, double cell, PhantomVariant varia
     const double extra = std::max(0.10, 5.0 * cell);
     const double ux = (x - cx) / (ax + 0.6 * extra), vy = (y - cy) / (ay + extra);
     const double outer = std::sqrt(ux * ux + vy * vy);
-    if (outer > 1.0) return kAir;
+    if (outer > 1.0) return in_body = false, kAir;
     if ((1.0 - outer) * (ay + extra) < skin) return kSkin;
     if (r > 1.0) return kFat;
   }
-  if (r > 1.0) return kAir;
+  if (r > 1.0) return in_body = false, kAir;
   const double depth = (1.0 - r) * ay;  // inward distance, in normalised y units (exact at the poles)
   if (depth < skin) return variant == PhantomVariant::ThickFat ? kFat : kSkin;
   if (depth < skin + fat) return kFat;
@@ -184,6 +187,9 @@ Volume make_phantom(const PhantomOptions& o) {
     v.origin = {-200.0 + 0.5 * v.spacing[0], -200.0 + 0.5 * v.spacing[1], -150.0 + 0.5 * v.spacing[2]};
   }
   v.hu.resize(v.size());
+  // The generator knows its own body: the outline of the anatomy, without the table (SPEC §3).
+  v.body.resize(v.size());
+  v.body_method = "the phantom's own outline";
   const double cell = 1.0 / o.dims.y;
   // A thick slice is the mean of the anatomy across its thickness (partial volume).
   constexpr int kSlabSamples = 5;
@@ -194,16 +200,22 @@ Volume make_phantom(const PhantomOptions& o) {
         const Index i = v.index(x, y, z);
         const double nx = (x + 0.5) / o.dims.x, ny = (y + 0.5) / o.dims.y;
         float base = 0;
+        bool in_body = false;
         if (thick_slices) {
           double sum = 0;
+          int body_samples = 0;
           for (int s = 0; s < kSlabSamples; ++s) {
             const double z_mm = (z + (s + 0.5) / kSlabSamples - 0.5 * o.dims.z) * v.spacing[2];
-            sum += phantom_hu(nx, ny, fold01(0.5 + z_mm / 300.0), cell, o.variant);
+            bool b = false;
+            sum += phantom_hu(nx, ny, fold01(0.5 + z_mm / 300.0), cell, o.variant, b);
+            body_samples += b;
           }
           base = static_cast<float>(sum / kSlabSamples);
+          in_body = 2 * body_samples > kSlabSamples;  // most of the slab
         } else {
-          base = phantom_hu(nx, ny, (z + 0.5) / o.dims.z, cell, o.variant);
+          base = phantom_hu(nx, ny, (z + 0.5) / o.dims.z, cell, o.variant, in_body);
         }
+        v.body[static_cast<std::size_t>(i)] = in_body ? 1 : 0;
         v.hu[static_cast<std::size_t>(i)] = base + o.noise_hu * gaussian(o.seed, static_cast<std::uint64_t>(i));
       }
   return v;

@@ -19,6 +19,9 @@ void validate_volume(const Volume& v, const std::string& what) {
                 std::to_string(v.dims.z) + " must be >= 1 on every axis");
   if (v.hu.size() != v.size())
     throw Error(what + ": has " + std::to_string(v.hu.size()) + " values for " + std::to_string(v.size()) + " voxels");
+  if (!v.body.empty() && v.body.size() != v.size())
+    throw Error(what + ": body mask has " + std::to_string(v.body.size()) + " values for " + std::to_string(v.size()) +
+                " voxels");
   for (int a = 0; a < 3; ++a)
     if (!(v.spacing[a] > 0) || !std::isfinite(v.spacing[a]))
       throw Error(what + ": spacing[" + std::to_string(a) + "] = " + std::to_string(v.spacing[a]) + " must be finite and > 0");

@@ -228,7 +228,7 @@ DeformedOnInputGrid deform_on_input_grid(const Input& in, const Model& m, const 
         }
         // Nearest label: labels are never averaged (no label is invented).
         const std::int64_t element = detail::nearest_voxel(m.dims, X);
-        d.classes[voxel] = element < 0 ? 0 : m.tissue[element];
+        d.classes[voxel] = element < 0 ? 0 : m.counted(element) ? m.tissue[element] : kOutsideLabel;
         const std::int64_t source = detail::nearest_voxel(dims, q0);
         for (std::size_t k = 0; k < labels.size(); ++k) {
           const std::size_t b = static_cast<std::size_t>(labels[k].bytes);

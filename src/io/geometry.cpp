@@ -448,6 +448,8 @@ Input prepare_input(Volume stored, const InputOptions& opt, const std::string& s
     in.lattice_grid = grid_of(stored);
     in.lattice = to_lps_order(stored);
   }
+  in.lattice.body = find_body(in.lattice);  // SPEC §3: on the lattice grid, whatever the source
+  in.lattice.body_method = kBodyMethod;
   in.stored = std::move(stored);
   return in;
 }

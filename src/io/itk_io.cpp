@@ -1035,7 +1035,9 @@ void write_label_map(const Input& in, const Model& m, const std::string& path) {
     throw Error(path + ": label map: the model has " + std::to_string(m.tissue.size()) + " tissue labels for " +
                 std::to_string(m.size()) + " elements");
   std::vector<unsigned char> classes(in.lattice_grid.size());
-  detail::for_each_lattice_voxel(in.lattice_grid.dims, in.order, [&](std::int64_t l, std::int64_t s) { classes[s] = m.tissue[l]; });
+  detail::for_each_lattice_voxel(in.lattice_grid.dims, in.order, [&](std::int64_t l, std::int64_t s) {
+    classes[s] = m.counted(l) ? m.tissue[l] : kOutsideLabel;  // SPEC §3: outside elements have their own label
+  });
   write_class_labels(in.lattice_grid, classes, path);
 }
 
@@ -1060,6 +1062,7 @@ void write_class_labels(const Grid& g, const std::vector<unsigned char>& classes
     for (int t = 0; t < kTissueCount; ++t)
       out << t << ' ' << tissue_name(t) << ' ' << rgba[t][0] << ' ' << rgba[t][1] << ' ' << rgba[t][2] << ' '
           << rgba[t][3] << '\n';
+    out << int(kOutsideLabel) << " outside 90 110 140 255\n";  // not the body (air noise, the table)
     out.close();
     if (!out) throw Error(ctbl + ": cannot write the colour table (disk full?)");
   }

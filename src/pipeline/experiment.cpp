@@ -105,7 +105,7 @@ ConditionResult run_condition(const Model& model, Params params, DampingMode mod
   if (r.finite && !finite_state(s)) r.finite = false;
   r.max_boundary_excess = std::max(r.max_boundary_excess, boundary_excess(s, model.dims, params.dynamics.margin));
   for (Index i = 0; i < model.size(); ++i)
-    if (model.tissue[i] == kBone) r.max_bone_velocity = std::max(r.max_bone_velocity, norm(s.vel[i]));
+    if (model.tissue[i] == kBone && model.counted(i)) r.max_bone_velocity = std::max(r.max_bone_velocity, norm(s.vel[i]));
   return r;
 }
 
@@ -127,6 +127,7 @@ ExperimentResult run_experiment(const Model& model, const Params& params, const 
   res.params = params;
   res.dims = model.dims;
   res.elements = model.size();
+  res.body = model.body;
   const auto& g0 = opt.scenario.grabs.back();
   for (const GrabAction& g : opt.scenario.grabs)
     check_lattice_extent(model, widest_grab_radius(g, model, params.solver.grab_radius), "experiment: the scenario's grab");

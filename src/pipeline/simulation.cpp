@@ -1,6 +1,7 @@
 #include "hpcm/simulation.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -39,6 +40,23 @@ Simulation::Simulation(Model model, Params params, std::unique_ptr<Backend> back
 }
 
 Simulation::~Simulation() = default;
+
+namespace {
+// Per-class speed sums and maxima over the body's elements, in a fixed order (reproducible).
+SpeedStats body_speed_stats(const Model& m, const std::vector<Vec3>& before, const std::vector<Vec3>& after) {
+  std::array<double, kTissueCount> sum{};
+  SpeedStats s;
+  for (Index i = 0; i < m.size(); ++i) {
+    if (!m.counted(i)) continue;
+    const float v = norm(after[static_cast<std::size_t>(i)] - before[static_cast<std::size_t>(i)]);
+    const int t = m.tissue[static_cast<std::size_t>(i)];
+    sum[t] += v;
+    s.max[t] = std::max(s.max[t], v);
+  }
+  for (int t = 0; t < kTissueCount; ++t) s.sum[t] = static_cast<float>(sum[t]);
+  return s;
+}
+}  // namespace
 
 void Simulation::set_params(const Params& p) {
   p.validate();
@@ -93,7 +111,8 @@ void Simulation::compute_anchors() {
   for (Index i = 0; i < model_.size(); ++i) {
     const Int3 c = model_.coords(i);
     const bool border = c.x == 0 || c.y == 0 || c.z == 0 || c.x == d.x - 1 || c.y == d.y - 1 || c.z == d.z - 1;
-    const bool bone = model_.tissue[i] == static_cast<std::uint8_t>(Tissue::Bone);
+    // Outside objects that are not air (the CT table) are a rigid support, like bone (SPEC §3).
+    const bool bone = model_.tissue[i] == static_cast<std::uint8_t>(Tissue::Bone) || model_.outside_object(i);
     if (params_.solver.anchors == AnchorMode::Border ? border : bone) {
       anchors_.push_back(i);
       anchored_[static_cast<std::size_t>(i)] = 1;
@@ -210,6 +229,9 @@ FrameReport Simulation::step(const StepOptions& opt) {
   r.requested_offset_mm = r.deform ? offset_length_mm(model_, requested_offset_) : 0.0;
   r.tool_limited = r.deform && tool_limited();
   Backend& b = *backend_;
+  const bool body_speeds = opt.speeds && !model_.region.empty();
+  if (body_speeds && (speed_ref_frame_ != frame_ || speed_ref_version_ != positions_version_))
+    b.download_positions(speed_ref_);  // X_end(t-1)
   b.mark(0);
   b.snapshot();  // X- <- X
   b.mark(1);
@@ -257,10 +279,21 @@ FrameReport Simulation::step(const StepOptions& opt) {
   r.sim_total_ms = r.snapshot_ms + r.chainmail_ms + r.inertia_ms;
   r.active_bricks = b.active_bricks();
   r.active_elements = b.active_elements();
+  if (body_speeds) {
+    std::vector<Vec3> now;
+    b.download_positions(now);
+    const SpeedStats all = sp;
+    sp = body_speed_stats(model_, speed_ref_, now);
+    sp.moved = all.moved;  // moved elements: every element, like the backend's
+    speed_ref_ = std::move(now);
+    speed_ref_frame_ = frame_ + 1;
+    speed_ref_version_ = positions_version_;
+  }
   if (opt.speeds) {
     r.moved_elements = sp.moved;
+    const auto& count = model_.counted_class_count;  // the body's elements (every element without one)
     for (int t = 0; t < kTissueCount; ++t) {
-      r.mean_speed[t] = model_.class_count[t] > 0 ? sp.sum[t] / static_cast<float>(model_.class_count[t]) : 0.0f;
+      r.mean_speed[t] = count[t] > 0 ? sp.sum[t] / static_cast<float>(count[t]) : 0.0f;
       r.max_speed[t] = sp.max[t];
     }
   }

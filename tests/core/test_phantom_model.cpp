@@ -180,3 +180,73 @@ TEST(Model, Errors) {
 }
 
 }  // namespace
+
+// SPEC §3, "The body, and what is not tissue": the phantom generator knows its own body.
+namespace {
+
+TEST(Body, PhantomKnowsItsBodyAndTheTableIsAnOutsideObject) {
+  PhantomOptions o;
+  o.dims = {48, 48, 32};
+  o.variant = PhantomVariant::Table;
+  const Volume v = make_phantom(o);
+  ASSERT_EQ(v.body.size(), v.size());
+  const Model m = build_model(v, Params{});
+  ASSERT_EQ(m.body.search, BodySummary::Search::Found);
+  ASSERT_EQ(m.region.size(), v.size());
+  EXPECT_EQ(m.body.body + m.body.outside_air + m.body.outside_objects, m.size());
+  // The table: every non-air element below its top (y >= 0.80 ny) is an outside object, and
+  // every outside object is there (the air around the body has no element at -500 HU or more).
+  const int table_top = static_cast<int>(0.80 * o.dims.y);
+  Index table_dense = 0;
+  for (Index i = 0; i < m.size(); ++i) {
+    const Int3 c = m.coords(i);
+    if (m.outside_object(i)) EXPECT_GE(c.y, table_top) << "outside object above the table at " << c.x << "," << c.y << "," << c.z;
+    if (c.y >= table_top + 1 && m.hu[i] >= kBodyHu) {
+      ++table_dense;
+      EXPECT_TRUE(m.outside_object(i)) << "the table's shell at " << c.x << "," << c.y << "," << c.z << " is not outside";
+    }
+    if (m.counted(i)) EXPECT_LT(c.y, table_top + 1) << "body element inside the table";
+  }
+  EXPECT_GT(table_dense, Index{0});
+  // The foam core (-850 HU, skin&fat by the class thresholds) is outside air: not counted.
+  const int skin = static_cast<int>(Tissue::SkinFat);
+  EXPECT_LT(m.counted_class_count[skin], m.class_count[skin]);
+  Index counted = 0;
+  for (int t = 0; t < kTissueCount; ++t) counted += m.counted_class_count[t];
+  EXPECT_EQ(counted, m.body.body);
+  EXPECT_NE(m.body.describe().find(std::to_string(m.body.outside_objects) + " outside objects"), std::string::npos);
+}
+
+TEST(Body, StandardPhantomHasNoOutsideObjects) {
+  PhantomOptions o;
+  o.dims = {48, 48, 32};
+  const Model m = build_model(make_phantom(o), Params{});
+  ASSERT_EQ(m.body.search, BodySummary::Search::Found);
+  EXPECT_EQ(m.body.outside_objects, 0);
+  EXPECT_GT(m.body.outside_air, m.size() / 10);  // the air around the elliptic body
+  // The body's outline: the anterior border row is air, the centre is body.
+  EXPECT_FALSE(m.counted(m.index(24, 0, 16)));
+  EXPECT_TRUE(m.counted(m.index(24, 24, 16)));
+}
+
+TEST(Body, NoBodyOrNotSearchedCountsEveryElement) {
+  Volume v;
+  v.dims = {8, 8, 8};
+  v.hu.assign(v.size(), -1000.0f);
+  Model m = build_model(v, Params{});  // not searched
+  EXPECT_EQ(m.body.search, BodySummary::Search::NotSearched);
+  EXPECT_TRUE(m.region.empty());
+  EXPECT_EQ(m.counted_class_count, m.class_count);
+  EXPECT_NE(m.body.describe().find("not searched"), std::string::npos);
+  v.body.assign(v.size(), 0);  // searched, nothing found: a test object
+  v.body_method = "test";
+  m = build_model(v, Params{});
+  EXPECT_EQ(m.body.search, BodySummary::Search::NoBody);
+  EXPECT_EQ(m.counted_class_count, m.class_count);
+  EXPECT_TRUE(m.counted(0));
+  EXPECT_NE(m.body.describe().find("none found"), std::string::npos);
+  v.body.assign(5, 1);  // a mask of another grid
+  EXPECT_THROW(build_model(v, Params{}), Error);
+}
+
+}  // namespace

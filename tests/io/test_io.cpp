@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -101,6 +102,7 @@ Model model_from(const Volume& v) {
   TissueThresholds t;
   m.tissue.resize(v.size());
   for (std::size_t i = 0; i < v.size(); ++i) m.tissue[i] = static_cast<std::uint8_t>(t.classify(v.hu[i]));
+  set_body(m, v.body, v.body_method);
   return m;
 }
 
@@ -376,8 +378,16 @@ TEST(Export, PermutedInputExportsComeBackInItsOwnOrder) {
     rv.hu.assign(raw.data.size(), 0);
     expect_same_geometry(coarse, rv, 1e-9);
     const TissueThresholds t;
-    for (std::size_t i = 0; i < coarse.hu.size(); ++i)
+    // Outside the body (SPEC §3) the label is "outside"; the body keeps its class.
+    Index outside = 0;
+    for (std::size_t i = 0; i < coarse.hu.size(); ++i) {
+      if (raw.data[i] == float(io::kOutsideLabel)) {
+        ++outside;
+        continue;
+      }
       ASSERT_EQ(raw.data[i], float(static_cast<int>(t.classify(coarse.hu[i])))) << "stored voxel " << i;
+    }
+    EXPECT_EQ(outside, m.body.outside_air + m.body.outside_objects);
     // A rigid shift of the lattice: the same physical vector everywhere, on the coarse grid.
     std::vector<Vec3> pos = rest_positions(m);
     for (auto& p : pos) p = p + Vec3{0.5f, -1.0f, 0.25f};
@@ -592,7 +602,8 @@ TEST(Export, LabelMapWithSlicerColourTable) {
   const auto raw = io::detail::read_raw_image(s / "labels.nii.gz");
   EXPECT_EQ(raw.component_type, "unsigned_char");
   ASSERT_EQ(raw.data.size(), m.tissue.size());
-  for (std::size_t i = 0; i < m.tissue.size(); ++i) ASSERT_EQ(raw.data[i], float(m.tissue[i]));
+  for (std::size_t i = 0; i < m.tissue.size(); ++i)
+    ASSERT_EQ(raw.data[i], m.counted(static_cast<Index>(i)) ? float(m.tissue[i]) : float(io::kOutsideLabel));
   std::ifstream ct(s / "labels.ctbl");
   ASSERT_TRUE(ct.good());
   std::string line;
@@ -604,10 +615,10 @@ TEST(Export, LabelMapWithSlicerColourTable) {
       std::string name;
       ASSERT_TRUE(bool(ls >> idx >> name >> r >> g >> b >> a)) << line;
       EXPECT_EQ(idx, entries);
-      EXPECT_EQ(name, tissue_name(idx));
+      EXPECT_EQ(name, idx == io::kOutsideLabel ? std::string("outside") : std::string(tissue_name(idx)));
       ++entries;
     }
-  EXPECT_EQ(entries, kTissueCount);
+  EXPECT_EQ(entries, kTissueCount + 1);  // the classes and "outside" (SPEC §3)
 }
 
 // ---- bad input (issue 4, item 6) -----------------------------------------------------------
@@ -854,4 +865,54 @@ TEST(DeformedLabels, LabelMapsKeepTypeAndGridThroughEveryFormat) {
   f.hu[0] = 0.5f;
   io::write_volume(f, floats);
   expect_error([&] { io::read_label_map(floats); }, floats, "integer type");
+}
+
+// SPEC §3: the body on the lattice with ITK's filters. A box of tissue with an air-filled
+// cavity lies on a table slab, joined to it by a one-element bridge; noisy air around them.
+TEST(Body, FindsTheBodyCutsThinContactsAndFillsHoles) {
+  Volume v;
+  v.dims = {30, 30, 20};
+  v.hu.assign(v.size(), -1000.0f);
+  std::mt19937 rng(3);
+  std::normal_distribution<float> noise(0.0f, 30.0f);
+  for (float& h : v.hu) h += noise(rng);
+  auto set = [&](Int3 lo, Int3 hi, float hu) {
+    for (int z = lo.z; z < hi.z; ++z)
+      for (int y = lo.y; y < hi.y; ++y)
+        for (int x = lo.x; x < hi.x; ++x) v.hu[static_cast<std::size_t>(v.index(x, y, z))] = hu;
+  };
+  set({5, 4, 3}, {25, 20, 17}, 40.0f);     // the body
+  set({10, 9, 8}, {15, 14, 12}, -900.0f);  // gas inside it (a hole to fill)
+  set({2, 23, 0}, {28, 27, 20}, 600.0f);   // the table, 3 elements below the body
+  set({15, 20, 10}, {16, 23, 11}, 40.0f);  // a one-element bridge between them
+  const std::vector<std::uint8_t> body = io::find_body(v);
+  ASSERT_EQ(body.size(), v.size());
+  // The opening cuts the bridge and the table off and rounds the box's edges (a ball of radius
+  // 2 does not fit into them); what it took within its radius of the body comes back: the
+  // edges and the first two elements of the bridge. Nothing else is body.
+  Index inside = 0;
+  for (Index i = 0; i < static_cast<Index>(v.size()); ++i) {
+    const int x = static_cast<int>(i % 30), y = static_cast<int>(i / 30 % 30), z = static_cast<int>(i / 900);
+    const bool in_box = x >= 5 && x < 25 && y >= 4 && y < 20 && z >= 3 && z < 17;
+    const bool near_bridge = x == 15 && z == 10 && (y == 20 || y == 21);
+    const bool in_body = body[static_cast<std::size_t>(i)] != 0;
+    inside += in_body;
+    ASSERT_EQ(in_body, in_box || near_bridge) << "element " << x << "," << y << "," << z;
+  }
+  EXPECT_EQ(inside, 20 * 16 * 14 + 2);  // the gas is body (filled); the table and the rest of the bridge are not
+  v.body = body;
+  v.body_method = io::kBodyMethod;
+  const Model m = build_model(v, Params{});
+  EXPECT_EQ(m.body.outside_objects, Index{26 * 4 * 20 + 1});  // the table and the bridge's last element: anchored
+  EXPECT_TRUE(m.outside_object(m.index(15, 22, 10)));
+  EXPECT_TRUE(m.outside_object(m.index(15, 24, 10)));
+
+  Volume air = v;  // nothing dense: no body, everything counted
+  air.hu.assign(air.size(), -1000.0f);
+  air.body = io::find_body(air);
+  EXPECT_EQ(std::count(air.body.begin(), air.body.end(), 1), 0);
+  EXPECT_EQ(build_model(air, Params{}).body.search, BodySummary::Search::NoBody);
+  // prepare_input gives the lattice its body.
+  const io::Input in = input_of(v);
+  EXPECT_EQ(in.lattice.body, body);
 }

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <array>
 #include <cstring>
 #include <functional>
 #include <limits>
@@ -154,17 +155,21 @@ TEST(FramePipeline, PaperProtocolFramesOnPhantom) {
     // Bone: inverse mass 0 and anchored, so its velocity state is exactly 0.
     for (Index i = 0; i < m.size(); ++i)
       if (m.tissue[i] == static_cast<int>(Tissue::Bone)) ASSERT_EQ(s.vel[i], (Vec3{})) << "bone " << i << ", frame " << frame;
-    // Speeds: mean and max of |X_end(t) - X_end(t-1)| per class.
+    // Speeds: mean and max of |X_end(t) - X_end(t-1)| per class, over the body's elements
+    // (SPEC §3: the phantom's own outline); moved elements: every element.
     PerTissue sum{}, mx{};
+    std::array<Index, kTissueCount> count{};
     Index moved = 0;
     for (Index i = 0; i < m.size(); ++i) {
       const float sp = norm(s.pos[i] - prev[i]);
+      if (sp > 0) ++moved;
+      if (!m.counted(i)) continue;
       sum[m.tissue[i]] += sp;
       mx[m.tissue[i]] = std::max(mx[m.tissue[i]], sp);
-      if (sp > 0) ++moved;
+      ++count[m.tissue[i]];
     }
     for (int t = 0; t < kTissueCount; ++t) {
-      const float mean = m.class_count[t] ? sum[t] / m.class_count[t] : 0.0f;
+      const float mean = count[t] ? sum[t] / count[t] : 0.0f;
       EXPECT_NEAR(r.mean_speed[t], mean, 1e-6f + 1e-4f * mean) << "class " << t << ", frame " << frame;
       EXPECT_EQ(r.max_speed[t], mx[t]) << "class " << t << ", frame " << frame;
     }
@@ -416,4 +421,61 @@ TEST(GrabRadius, OutsideTheRangeIsRefusedNotReplacedByTheDefault) {
   EXPECT_EQ(sim.grabbed().size(), 1u);
   sim.grab(centre, kMaxGrabRadius);
   EXPECT_EQ(sim.grabbed().size(), static_cast<std::size_t>(sim.model().size()));
+}
+
+// SPEC §3: with a body, the per-class speeds count its elements only; outside air moves freely
+// (and is not counted); outside objects that are not air (the table) are anchored at rest.
+TEST(Body, StatisticsCountTheBodyOnlyAndTheTableIsAnchored) {
+  Volume v;
+  v.dims = {16, 14, 10};
+  v.hu.resize(v.size());
+  v.body.resize(v.size());
+  v.body_method = "test";
+  for (int z = 0; z < v.dims.z; ++z)
+    for (int y = 0; y < v.dims.y; ++y)
+      for (int x = 0; x < v.dims.x; ++x) {
+        const auto i = static_cast<std::size_t>(v.index(x, y, z));
+        const bool air = y < 4, table = y >= 11;
+        v.hu[i] = air ? -1000.0f : table ? 600.0f : 0.0f;  // outside air, body (skin&fat), table (bone HU)
+        v.body[i] = !air && !table;
+      }
+  const Params p;
+  const Model m = build_model(v, p);
+  ASSERT_EQ(m.body.search, BodySummary::Search::Found);
+  EXPECT_EQ(m.body.outside_air, Index{16 * 4 * 10});
+  EXPECT_EQ(m.body.outside_objects, Index{16 * 3 * 10});
+  const int air = static_cast<int>(Tissue::Air), skin = static_cast<int>(Tissue::SkinFat),
+            bone = static_cast<int>(Tissue::Bone);
+  EXPECT_EQ(m.counted_class_count[air], 0);
+  EXPECT_EQ(m.counted_class_count[bone], 0);
+  EXPECT_EQ(m.counted_class_count[skin], Index{16 * 7 * 10});
+
+  Simulation sim(m, p);
+  sim.grab(m.index(8, 4, 5), 1.5f);
+  double air_moved = 0;
+  for (int f = 0; f < 6; ++f) {
+    sim.move_tool({0.0f, -0.4f * static_cast<float>(f + 1), 0.0f});
+    const std::vector<Vec3> before = sim.state().pos;
+    const FrameReport r = sim.step();
+    const State& s = sim.state();
+    double skin_sum = 0;
+    float skin_max = 0;
+    for (Index i = 0; i < m.size(); ++i) {
+      const float sp = norm(s.pos[i] - before[i]);
+      if (m.region[i] == std::uint8_t(Region::OutsideAir)) air_moved = std::max<double>(air_moved, sp);
+      if (m.outside_object(i)) {
+        EXPECT_TRUE(s.flags[i] & kAnchor) << "table element " << i << " is not anchored";
+        EXPECT_EQ(s.pos[i], m.rest(i)) << "table element " << i << " moved";
+      }
+      if (m.counted(i) && m.tissue[i] == skin) {
+        skin_sum += sp;
+        skin_max = std::max(skin_max, sp);
+      }
+    }
+    EXPECT_NEAR(r.mean_speed[skin], skin_sum / m.counted_class_count[skin], 1e-6) << "frame " << f;
+    EXPECT_EQ(r.max_speed[skin], skin_max) << "frame " << f;
+    EXPECT_EQ(r.mean_speed[air], 0.0f) << "frame " << f << ": outside air counted";
+    EXPECT_EQ(r.mean_speed[bone], 0.0f) << "frame " << f << ": the table counted";
+  }
+  EXPECT_GT(air_moved, 0.1) << "the outside air in front of the pull stays free";
 }

@@ -220,7 +220,8 @@ def test_displacement_in_the_inputs_own_order(tmp_path, phantom):
     np.testing.assert_allclose(np.asarray(field.dataobj)[:, :, :, 0, :], u, atol=1e-6)
     hpcm.write_label_map(inp, sim, str(tmp_path / "labels.nii.gz"))
     labels = np.asarray(nib.load(str(tmp_path / "labels.nii.gz")).dataobj)
-    np.testing.assert_array_equal(labels, hpcm.to_stored_order(inp, sim.labels))
+    outside = np.uint8(4)  # SPEC §3: elements outside the body have their own label
+    np.testing.assert_array_equal(labels, hpcm.to_stored_order(inp, np.where(sim.body, sim.labels, outside)))
     assert Path(files["deformed"]).name == "deformed_final.nii.gz"
     assert nib.load(files["deformed"]).shape == stored.shape
 
@@ -246,3 +247,29 @@ def test_real_ct_input(tmp_path):
         hpcm.load_input(str(NIFTI), roi=(0, 0, 0, 200, 10, 10))
     with pytest.raises(hpcm.Error, match="no such file"):
         hpcm.load_input(str(tmp_path / "missing.nii.gz"))
+
+
+def test_body_mask_is_exposed_read_only():
+    # SPEC §3: the body found on load (ITK on the lattice), the phantom's own outline, none for an array.
+    table = hpcm.phantom((32, 32, 24), variant="table")
+    assert table.body is not None and table.body.dtype == bool and table.body.shape == (32, 32, 24)
+    assert not table.body.flags.writeable
+    inp = hpcm.prepare_input(table, downsample=1, source="table phantom")
+    body = inp.body
+    assert body.dtype == bool and body.shape == inp.lattice.dims and not body.flags.writeable
+    with pytest.raises(ValueError):
+        body[0, 0, 0] = True
+    hu = np.asarray(inp.lattice.hu)
+    assert body.sum() > 0 and not body[:, 0, :].any()  # the anterior border row is air
+    assert ((~body) & (hu >= -500)).sum() > 0  # the table is not body
+    sim = hpcm.Simulation(inp.lattice)
+    np.testing.assert_array_equal(sim.body, body)
+    summary = sim.body_summary
+    assert summary["search"] == "found"
+    assert summary["counted_elements"] == int(body.sum())
+    assert summary["outside_objects"] == int(((~body) & (hu >= -500)).sum())
+    assert summary["counted_elements"] + summary["outside_air"] + summary["outside_objects"] == body.size
+    array = hpcm.Volume(np.full((8, 8, 8), -1000.0, np.float32))
+    assert array.body is None
+    free = hpcm.Simulation(array)
+    assert free.body.all() and free.body_summary["search"] == "not searched"
