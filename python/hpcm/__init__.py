@@ -209,22 +209,22 @@ _compiled_run_experiment = _hpcm.run_experiment
 
 
 def run_experiment(lattice, params=None, scenario=None, settle_frames=2000, backend="cpu", progress=None):
-    if progress is True:
-        bar = _ProgressBar("hpcm experiment")
-        names = "ABC"
+    bars = []  # progress=True: one bar per condition (done counts from 1 in each)
 
-        def callback(condition, done, total):
-            bar._desc = f"hpcm experiment, condition {names[condition] if 0 <= condition < 3 else condition}"
-            bar(done, total)
-    else:
-        bar = None
-        callback = None if progress is False else progress
+    def bar_per_condition(condition, done, total):
+        if not bars or bars[-1][0] != condition:
+            if bars:
+                bars[-1][1].close()
+            bars.append((condition, _ProgressBar(f"hpcm experiment, condition {'ABC'[condition]}")))
+        bars[-1][1](done, total)
+
+    callback = bar_per_condition if progress is True else (None if progress is False else progress)
     try:
         return _compiled_run_experiment(lattice, Params() if params is None else params, scenario, settle_frames,
                                         backend, callback)
     finally:
-        if bar is not None:
-            bar.close()
+        if bars:
+            bars[-1][1].close()
 
 
 run_experiment.__doc__ = _compiled_run_experiment.__doc__ + """

@@ -265,3 +265,26 @@ def test_cli_version_is_the_python_modules_version():
     p = subprocess.run([os.environ["HPCM_CLI"], "--version"], capture_output=True, text=True, timeout=30)
     assert p.returncode == 0, p.stderr
     assert p.stdout.strip() == f"hpcm {hpcm.__version__}"
+
+
+def test_progress_true_uses_tqdm_where_installed(monkeypatch):
+    bars = []
+
+    class FakeTqdm:  # stands in for tqdm.tqdm: records what the bar is told
+        def __init__(self, total, desc, unit):
+            self.n, self.total, self.closed = 0, total, False
+            bars.append(self)
+
+        def update(self, k):
+            self.n += k
+
+        def close(self):
+            self.closed = True
+
+    monkeypatch.setitem(sys.modules, "tqdm", type(sys)("tqdm"))
+    sys.modules["tqdm"].tqdm = FakeTqdm
+    hpcm.Simulation(hpcm.phantom((24, 20, 16))).run(12, progress=True)
+    assert len(bars) == 1 and bars[0].total == 12 and bars[0].n == 12 and bars[0].closed
+    hpcm.run_experiment(hpcm.phantom((24, 20, 16)), settle_frames=3, progress=True)
+    assert len(bars) == 4  # one per condition A, B, C
+    assert all(b.n == b.total and b.closed for b in bars[1:])
