@@ -318,4 +318,7 @@ def to_nibabel(data, like=None, affine=None):
         raise Error(f"to_nibabel: affine must be 4x4, got shape {affine.shape}")
     if array.ndim == 4:
         array = array[:, :, :, None, :]  # NIfTI keeps vector components on the 5th axis
-    return _nib.Nifti1Image(_np.ascontiguousarray(array), affine)
+    img = _nib.Nifti1Image(_np.ascontiguousarray(array), affine)
+    if array.ndim == 5:
+        img.header.set_intent("vector")
+    return img

@@ -503,6 +503,7 @@ Several threads may call one Simulation: the calls run one at a time.)")
           "Applies this frame's input (grab / move / release) and steps the simulation.")
       .def("run", [](GuardedPlayer& p, int frames, bool speeds, bool link_violation, bool cell_jacobian,
                      py::handle progress) {
+            if (frames < -1) throw Error("frames " + std::to_string(frames) + " must be >= 0 (or -1: to the scenario's end)");
             const StepOptions o = step_options(speeds, link_violation, cell_jacobian);
             std::vector<FrameReport> reports;
             SimulationTurn turn(p.sim);

@@ -132,6 +132,8 @@ def test_scenario_player_run_plays_to_the_end_with_progress():
     seen = []
     columns = player.run(progress=lambda done, total: seen.append((done, total)))
     assert len(columns["frame"]) == 40 and player.done and seen[-1] == (40, 40)
+    with pytest.raises(hpcm.Error, match="frames -2"):
+        player.run(-2)
 
 
 # ---- the GIL is released in long calls ---------------------------------------------------

@@ -110,6 +110,7 @@ def test_to_nibabel_round_trips_and_places_arrays_on_the_inputs_grids(tmp_path):
     field = hpcm.to_nibabel(u, like=inp)
     np.testing.assert_allclose(field.affine, inp.lattice_affine, atol=1e-6)
     assert field.shape == u.shape[:3] + (1, 3)
+    assert field.header.get_intent()[0] == "vector"
     v = hpcm.pullback_mm(inp, sim)  # on inp.stored's grid
     np.testing.assert_allclose(hpcm.to_nibabel(v, like=inp).affine, inp.affine, atol=1e-6)
     with pytest.raises(hpcm.Error, match="grid"):
