@@ -1,12 +1,15 @@
 // hpcm: command-line entry point. Each subcommand lives in its own cmd_*.cpp.
 #include <cstdio>
 #include <exception>
+#include <string>
 
 #include "cli_common.hpp"
 
 int main(int argc, char** argv) {
   CLI::App app{"hpcm: dynamic HP-ChainMail soft-tissue deformation of CT volumes"};
   app.require_subcommand(1);
+  // The same version as the Python module's hpcm.__version__ (CMake's PROJECT_VERSION).
+  app.set_version_flag("--version", std::string("hpcm ") + HPCM_VERSION, "Print the hpcm version and exit");
   hpcm::cli::register_phantom(app);
   hpcm::cli::register_run(app);
   hpcm::cli::register_experiment(app);

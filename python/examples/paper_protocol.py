@@ -94,7 +94,9 @@ def main():
     lattice, title = lattice_of(args)
     params = hpcm.Params.load(args.params) if args.params else hpcm.Params()
     print(f"{title}: lattice {lattice.dims}, conditions A, B, C, {args.settle} settle frames ...", flush=True)
-    result = hpcm.run_experiment(lattice, params, settle_frames=args.settle, backend=args.backend)
+    # A progress bar on a terminal (the experiment takes minutes); quiet in logs and tests.
+    result = hpcm.run_experiment(lattice, params, settle_frames=args.settle, backend=args.backend,
+                                 progress=sys.stderr.isatty())
     print_tables(result)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

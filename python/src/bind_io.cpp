@@ -79,31 +79,51 @@ order: {"axis", "reversed"}: LPS axis p runs along stored axis axis[p], backward
       .def_property_readonly("left_out", [](const io::Input& in) { return int3_tuple(in.left_out); },
                              "stored voxels per axis beyond the last complete down-sampling block");
 
-  m.def("read_volume", [](const std::string& path, const std::string& series) {
+  // Paths are str or os.PathLike (std::filesystem::path); a missing input raises
+  // FileNotFoundError. The reads, writes and exports run without the GIL: other Python threads
+  // go on meanwhile.
+  m.def("read_volume", [](const std::filesystem::path& path, const std::string& series) {
+        const std::string file = existing_path(path, "volume");
         io::ReadOptions o;
         o.series_uid = series;
-        return io::read_volume(path, o);
+        py::gil_scoped_release release;
+        return io::read_volume(file, o);
       }, py::arg("path"), py::arg("series") = "", "A volume file or DICOM directory, reoriented to LPS index order.");
-  m.def("read_volume_as_stored", [](const std::string& path, const std::string& series) {
+  m.def("read_volume_as_stored", [](const std::filesystem::path& path, const std::string& series) {
+        const std::string file = existing_path(path, "volume");
         io::ReadOptions o;
         o.series_uid = series;
-        return io::read_volume_as_stored(path, o);
+        py::gil_scoped_release release;
+        return io::read_volume_as_stored(file, o);
       }, py::arg("path"), py::arg("series") = "", "A volume file or DICOM directory in the file's own index order.");
-  m.def("write_volume", &io::write_volume, py::arg("volume"), py::arg("path"),
+  m.def("write_volume", [](const Volume& volume, const std::filesystem::path& path) {
+        io::write_volume(volume, path.string());
+      }, py::arg("volume"), py::arg("path"), py::call_guard<py::gil_scoped_release>(),
         "Writes a volume (.nii, .nii.gz, .nrrd, .nhdr, .mha, .mhd) in its own index order and geometry.");
-  m.def("load_input", [](const std::string& path, int downsample, py::handle roi, const std::string& series) {
-        return io::load_input(path, input_options(downsample, roi, series));
+  m.def("load_input", [](const std::filesystem::path& path, int downsample, py::handle roi, const std::string& series) {
+        const std::string file = existing_path(path, "input");
+        const io::InputOptions o = input_options(downsample, roi, series);
+        py::gil_scoped_release release;
+        return io::load_input(file, o);
       }, py::arg("path"), py::arg("downsample") = 1, py::arg("roi") = py::none(), py::arg("series") = "",
       "Reads a CT (file or DICOM directory), crops to roi (x0, y0, z0, x1, y1, z1 in the file's own voxel "
       "indices, upper bounds exclusive), block-averages by `downsample` in the file's index order and "
       "reorients to LPS. Returns an Input.");
   m.def("prepare_input", [](const Volume& stored, int downsample, py::handle roi, const std::string& source) {
-        return io::prepare_input(stored, input_options(downsample, roi, ""), source);
+        const io::InputOptions o = input_options(downsample, roi, "");
+        py::gil_scoped_release release;
+        return io::prepare_input(stored, o, source);
       }, py::arg("stored"), py::arg("downsample") = 1, py::arg("roi") = py::none(), py::arg("source") = "array",
       "As load_input, for a Volume given in its own index order (e.g. phantom()).");
-  m.def("list_dicom_series", [](const std::string& dir) {
+  m.def("list_dicom_series", [](const std::filesystem::path& dir) {
+        const std::string folder = existing_path(dir, "DICOM directory");
+        std::vector<io::DicomSeriesInfo> series;
+        {
+          py::gil_scoped_release release;
+          series = io::list_dicom_series(folder);
+        }
         py::list out;
-        for (const auto& s : io::list_dicom_series(dir)) {
+        for (const auto& s : series) {
           py::dict d;
           d["uid"] = s.uid;
           d["modality"] = s.modality;
@@ -117,30 +137,41 @@ order: {"axis", "reversed"}: LPS axis p runs along stored axis axis[p], backward
       }, py::arg("directory"));
 
   // The exports read a simulation that other Python threads may be stepping: each takes the
-  // simulation's turn. They keep the GIL while they compute.
+  // simulation's turn, then compute without the GIL.
   m.def("displacement_mm", [](const io::Input& in, GuardedSimulation& sim) {
         SimulationTurn turn(sim);
-        std::vector<float> u = io::displacement_on_input_grid(in, sim.model(), positions_of(sim));
+        std::vector<float> u;
+        {
+          py::gil_scoped_release release;
+          u = io::displacement_on_input_grid(in, sim.model(), positions_of(sim));
+        }
         return lattice_array(std::move(u), in.lattice_grid.dims, 3);
       }, py::arg("input"), py::arg("simulation"),
       "Forward displacement X - X0 in millimetres (LPS components) on input.lattice_grid, indexed in the "
       "input's own order: exactly what write_displacement_field writes.");
-  m.def("write_displacement_field", [](const io::Input& in, GuardedSimulation& sim, const std::string& path) {
+  m.def("write_displacement_field", [](const io::Input& in, GuardedSimulation& sim, const std::filesystem::path& path) {
         SimulationTurn turn(sim);
-        io::write_displacement_field(in, sim.model(), positions_of(sim), path);
+        py::gil_scoped_release release;
+        io::write_displacement_field(in, sim.model(), positions_of(sim), path.string());
       }, py::arg("input"), py::arg("simulation"), py::arg("path"));
-  m.def("write_label_map", [](const io::Input& in, GuardedSimulation& sim, const std::string& path) {
+  m.def("write_label_map", [](const io::Input& in, GuardedSimulation& sim, const std::filesystem::path& path) {
         SimulationTurn turn(sim);
-        io::write_label_map(in, sim.model(), path);
+        py::gil_scoped_release release;
+        io::write_label_map(in, sim.model(), path.string());
       }, py::arg("input"), py::arg("simulation"), py::arg("path"));
-  m.def("write_deformed_volume", [](const io::Input& in, GuardedSimulation& sim, const std::string& path) {
+  m.def("write_deformed_volume", [](const io::Input& in, GuardedSimulation& sim, const std::filesystem::path& path) {
         SimulationTurn turn(sim);
-        io::write_deformed_volume(in, sim.model(), positions_of(sim), path);
+        py::gil_scoped_release release;
+        io::write_deformed_volume(in, sim.model(), positions_of(sim), path.string());
       }, py::arg("input"), py::arg("simulation"), py::arg("path"));
-  m.def("export_frame", [](const io::Input& in, GuardedSimulation& sim, const std::string& folder, const std::string& tag,
-                           bool nrrd_field) {
+  m.def("export_frame", [](const io::Input& in, GuardedSimulation& sim, const std::filesystem::path& folder,
+                           const std::string& tag, bool nrrd_field) {
         SimulationTurn turn(sim);
-        const io::ExportFiles f = io::export_frame(in, sim.model(), positions_of(sim), folder, tag, nrrd_field);
+        io::ExportFiles f;
+        {
+          py::gil_scoped_release release;
+          f = io::export_frame(in, sim.model(), positions_of(sim), folder.string(), tag, nrrd_field);
+        }
         py::dict d;
         d["displacement_nifti"] = f.displacement_nifti;
         d["displacement_nrrd"] = f.displacement_nrrd.empty() ? py::object(py::none()) : py::object(py::str(f.displacement_nrrd));
@@ -166,11 +197,21 @@ order: {"axis", "reversed"}: LPS axis p runs along stored axis axis[p], backward
       "as `hpcm run --export` does; returns the paths, the field's Jacobian check (displacement_jacobian), the "
       "deformed CT's inverse-mapping residuals (inverse_mapping) and the problems found (empty when clean).");
 
-  m.def("warp_labels", [](const io::Input& in, GuardedSimulation& sim, const std::string& labels, py::object path) {
-        io::LabelMap map = io::label_map_on_input_grid(io::read_label_map(labels), in);
+  m.def("warp_labels", [](const io::Input& in, GuardedSimulation& sim, const std::filesystem::path& labels,
+                          std::optional<std::filesystem::path> path) {
+        const std::string labels_file = existing_path(labels, "label map");
+        io::LabelMap map;
+        {
+          py::gil_scoped_release release;
+          map = io::label_map_on_input_grid(io::read_label_map(labels_file), in);
+        }
         SimulationTurn turn(sim);
-        io::DeformedOnInputGrid d = io::deform_on_input_grid(in, sim.model(), positions_of(sim), {map});
-        if (!path.is_none()) io::write_label_values(d.labels[0], path.cast<std::string>());
+        io::DeformedOnInputGrid d;
+        {
+          py::gil_scoped_release release;
+          d = io::deform_on_input_grid(in, sim.model(), positions_of(sim), {map});
+          if (path) io::write_label_values(d.labels[0], path->string());
+        }
         return label_array(std::move(d.labels[0]));
       }, py::arg("input"), py::arg("simulation"), py::arg("labels"), py::arg("path") = py::none(),
       "Deforms the label map file `labels` (NIfTI/NRRD/MetaImage, any integer type, on the input's grid: "
@@ -180,7 +221,11 @@ order: {"axis", "reversed"}: LPS axis p runs along stored axis axis[p], backward
       "A float label map or one on another grid raises hpcm.Error naming both grids.");
   m.def("pullback_mm", [](const io::Input& in, GuardedSimulation& sim) {
         SimulationTurn turn(sim);
-        io::DeformedOnInputGrid d = io::deform_on_input_grid(in, sim.model(), positions_of(sim));
+        io::DeformedOnInputGrid d;
+        {
+          py::gil_scoped_release release;
+          d = io::deform_on_input_grid(in, sim.model(), positions_of(sim));
+        }
         return lattice_array(std::move(d.pullback_mm), d.grid.dims, 3);
       }, py::arg("input"), py::arg("simulation"),
       "Pull-back (resampling) displacement v = X - x in millimetres (LPS components) on input.stored's grid, "

@@ -32,7 +32,8 @@ Params.load(path) / Params.from_toml(text) read parameter files; p.to_toml() wri
       .def("__eq__", [](const Params& a, const Params& b) { return a == b; }, py::is_operator())
       .def("_assign", [](Params& self, const Params& other) { self = other; })
 #if defined(HPCM_WITH_CONFIG)
-      .def_static("load", &config::load_params, py::arg("path"), "Reads and validates a TOML parameter file.")
+      .def_static("load", [](const std::filesystem::path& path) { return config::load_params(existing_path(path, "parameter file")); },
+                  py::arg("path"), "Reads and validates a TOML parameter file (str or os.PathLike).")
       .def_static("from_toml", [](const std::string& text, const std::string& source) { return config::parse_params(text, source); },
                   py::arg("text"), py::arg("source") = "<string>", "Parses parameter-file text (missing keys: defaults).")
       .def("to_toml", [](const Params& p) { return config::params_to_toml(p); }, "The complete parameter file of these values.")
@@ -62,7 +63,8 @@ Scenario.from_toml(text) read scenario files (docs/scenarios.md).)")
       .def_property_readonly("grabs", [](const Scenario& s) { return s.grabs.size(); }, "number of grab actions")
       .def("last_release_frame", &Scenario::last_release_frame)
 #if defined(HPCM_WITH_CONFIG)
-      .def_static("load", &config::load_scenario, py::arg("path"))
+      .def_static("load", [](const std::filesystem::path& path) { return config::load_scenario(existing_path(path, "scenario file")); },
+                  py::arg("path"))
       .def_static("from_toml", [](const std::string& text, const std::string& source) { return config::parse_scenario(text, source); },
                   py::arg("text"), py::arg("source") = "<string>")
       .def("to_toml", [](const Scenario& s) { return config::scenario_to_toml(s); })

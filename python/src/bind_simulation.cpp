@@ -1,8 +1,10 @@
 // Simulation (grab / move / release / step), its per-frame reports, ScenarioPlayer and the
 // paper's experiment. Lattice arrays are indexed [x, y, z] in the lattice's LPS order.
-#include <cmath>
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstring>
+#include <limits>
 #include <sstream>
 #include <string>
 #include <variant>
@@ -185,15 +187,19 @@ Vec3 offset_from(py::handle v, const std::string& name, const std::string& unit)
   return {static_cast<float>(c[0]), static_cast<float>(c[1]), static_cast<float>(c[2])};
 }
 
+// Building the model is the long part of the constructor: it runs without the GIL.
 std::unique_ptr<GuardedSimulation> make_simulation(const Volume& lattice, const Params& p, const std::string& backend) {
-  return std::make_unique<GuardedSimulation>(build_model(lattice, p), p, parse_backend(backend, "backend"));
+  const BackendKind kind = parse_backend(backend, "backend");
+  py::gil_scoped_release release;
+  return std::make_unique<GuardedSimulation>(build_model(lattice, p), p, kind);
 }
 
 /// A ScenarioPlayer and the simulation it plays on: its calls take that simulation's turn.
 struct GuardedPlayer {
-  GuardedPlayer(const Scenario& s, GuardedSimulation& simulation) : sim(simulation), player(s, simulation) {}
+  GuardedPlayer(const Scenario& s, GuardedSimulation& simulation) : sim(simulation), player(s, simulation), frames(s.frames) {}
   GuardedSimulation& sim;
   ScenarioPlayer player;
+  int frames;  // the scenario's length
 };
 
 py::dict condition_dict(const ConditionResult& c) {
@@ -273,21 +279,25 @@ py::dict run_experiment_py(const Volume& lattice, const Params& given, const Sce
   // The experiment runs without the GIL: it works on copies, not on objects other Python
   // threads may change meanwhile (the lattice is read only by build_model, here).
   const Params p = given;
-  const Model model = build_model(lattice, p);
   ExperimentOptions opt;
   if (scenario) opt.scenario = *scenario;
   opt.settle_frames = settle_frames;
   opt.backend = parse_backend(backend, "backend");
-  if (!progress.is_none())
-    // A handle, not an object: copying the std::function without the GIL must not touch the
-    // reference count (`progress` outlives the call).
-    opt.progress = [callback = py::handle(progress)](int condition, int done, int total) {
-      py::gil_scoped_acquire gil;
-      callback(condition, done, total);
-    };
+  // Called after every frame, without the GIL: Ctrl-C stops the experiment there
+  // (KeyboardInterrupt); `progress` (a handle: copying the std::function without the GIL must not
+  // touch the reference count; it outlives the call) is called per frame.
+  BetweenFrames between_frames(py::none(), std::numeric_limits<long>::max());  // checks every 20 ms
+  opt.progress = [&between_frames, callback = py::handle(progress)](int condition, int done, int total) {
+    if (callback.is_none()) return between_frames(0);
+    py::gil_scoped_acquire gil;
+    if (PyErr_CheckSignals() != 0) throw py::error_already_set();
+    callback(condition, done, total);
+  };
   ExperimentResult r;
+  Model model;
   {
     py::gil_scoped_release release;
+    model = build_model(lattice, p);
     r = run_experiment(model, p, opt);
   }
   return experiment_dict(r, model);
@@ -426,6 +436,8 @@ Several threads may call one Simulation: the calls run one at a time.)")
             const Vec3 o = mm ? offset_from(offset_mm, "tool offset_mm", "millimetres")
                               : offset_from(offset, "tool offset", "lattice units");
             SimulationTurn turn(s);
+            // Without a grab there is nothing to move: say so rather than do nothing.
+            if (!s.grabbing()) throw Error("move_tool: nothing is grabbed; call grab(...) first");
             s.move_tool(mm ? lattice_offset_of_mm(s.model(), o) : o);
           },
            py::arg("offset") = py::none(), py::arg("offset_mm") = py::none(),
@@ -438,20 +450,28 @@ Several threads may call one Simulation: the calls run one at a time.)")
             return s.step(o);
           }), py::arg("speeds") = true, py::arg("link_violation") = false, py::arg("cell_jacobian") = false,
           "One frame; returns its FrameReport. link_violation / cell_jacobian: also measure those (O(N) each).")
-      .def("run", [](GuardedSimulation& s, int frames, bool speeds, bool link_violation, bool cell_jacobian) {
+      .def("run", [](GuardedSimulation& s, int frames, bool speeds, bool link_violation, bool cell_jacobian,
+                     py::handle progress) {
             if (frames < 0) throw Error("frames " + std::to_string(frames) + " must be >= 0");
             const StepOptions o = step_options(speeds, link_violation, cell_jacobian);
             std::vector<FrameReport> reports;
             reports.reserve(static_cast<std::size_t>(frames));
             {
               SimulationTurn turn(s);
+              BetweenFrames between_frames(progress, frames);
               py::gil_scoped_release release;
-              for (int f = 0; f < frames; ++f) reports.push_back(s.step(o));
+              for (int f = 0; f < frames; ++f) {
+                reports.push_back(s.step(o));
+                between_frames(f + 1);  // Ctrl-C: KeyboardInterrupt here, after a whole frame
+              }
             }
             return report_columns(reports);
           }, py::arg("frames"), py::arg("speeds") = true, py::arg("link_violation") = false, py::arg("cell_jacobian") = false,
+          py::arg("progress") = py::none(),
           "`frames` frames with the tool as it is; returns per-frame statistics as numpy columns "
-          "(one array per FrameReport field).")
+          "(one array per FrameReport field). progress(done, total) is called every 20 ms and after the last "
+          "frame (hpcm.Simulation.run also takes progress=True: a tqdm bar). Ctrl-C stops it between two frames "
+          "with KeyboardInterrupt; the frames done stay done.")
       .def("reset", in_turn(+[](Simulation& s) { s.reset(); }), "Back to rest (X = X0, V = 0), grab released, frame 0.")
       .def("positions", in_turn(+[](Simulation& s) {
             std::vector<Vec3> pos;
@@ -498,7 +518,28 @@ Several threads may call one Simulation: the calls run one at a time.)")
             py::gil_scoped_release release;
             return p.player.step(o);
           }, py::arg("speeds") = true, py::arg("link_violation") = false, py::arg("cell_jacobian") = false,
-          "Applies this frame's input (grab / move / release) and steps the simulation.");
+          "Applies this frame's input (grab / move / release) and steps the simulation.")
+      .def("run", [](GuardedPlayer& p, int frames, bool speeds, bool link_violation, bool cell_jacobian,
+                     py::handle progress) {
+            if (frames < -1) throw Error("frames " + std::to_string(frames) + " must be >= 0 (or -1: to the scenario's end)");
+            const StepOptions o = step_options(speeds, link_violation, cell_jacobian);
+            std::vector<FrameReport> reports;
+            SimulationTurn turn(p.sim);
+            const long left = p.player.done() ? 0 : std::max<long>(0, p.frames - p.player.frame());
+            const long total = frames < 0 ? left : std::min<long>(frames, left);
+            {
+              BetweenFrames between_frames(progress, total);
+              py::gil_scoped_release release;
+              for (long f = 0; f < total && !p.player.done(); ++f) {
+                reports.push_back(p.player.step(o));
+                between_frames(f + 1);  // Ctrl-C: KeyboardInterrupt here, after a whole frame
+              }
+            }
+            return report_columns(reports);
+          }, py::arg("frames") = -1, py::arg("speeds") = true, py::arg("link_violation") = false,
+          py::arg("cell_jacobian") = false, py::arg("progress") = py::none(),
+          "Plays `frames` frames (-1: to the scenario's end) and returns their statistics as numpy columns, as "
+          "Simulation.run does (progress, Ctrl-C between frames: the same).");
 
   m.def("run_experiment", &run_experiment_py, py::arg("lattice"), py::arg("params") = Params{},
         py::arg("scenario") = nullptr, py::arg("settle_frames") = 2000, py::arg("backend") = "cpu",

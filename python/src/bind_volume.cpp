@@ -1,4 +1,5 @@
 // Volume (HU + geometry) and the synthetic phantom.
+#include <cerrno>
 #include <cmath>
 #include <sstream>
 
@@ -21,6 +22,27 @@ std::array<double, 9> matrix3_from(py::handle m, const char* what) {
   std::array<double, 9> out{};
   for (int k = 0; k < 9; ++k) out[static_cast<std::size_t>(k)] = a.data()[k];
   return out;
+}
+
+std::string existing_path(const std::filesystem::path& path, const char* what) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) {
+    const std::string text = path.string();
+    // FileNotFoundError(errno, message, filename): str() shows "[Errno 2] ...: '<path>'".
+    PyErr_SetObject(PyExc_FileNotFoundError,
+                    py::make_tuple(ENOENT, std::string(what) + " not found", text).ptr());
+    throw py::error_already_set();
+  }
+  return path.string();
+}
+
+void BetweenFrames::operator()(long done) {
+  const auto now = std::chrono::steady_clock::now();
+  if (done < total_ && now - last_ < kCheckInterval) return;
+  last_ = now;
+  py::gil_scoped_acquire gil;
+  if (PyErr_CheckSignals() != 0) throw py::error_already_set();
+  if (progress_ && !progress_.is_none()) progress_(done, total_);
 }
 
 namespace {
@@ -104,9 +126,14 @@ indexed [x, y, z]; `direction` columns are the physical directions of the index 
       .def_property_readonly(
           "hu", [](py::object self) {
             const Volume& v = self.cast<const Volume&>();
-            return lattice_view(v.hu.data(), v.dims, 1, self, true);
+            // A Volume Python owns (Volume(...), read_volume, phantom) may be edited; one an Input
+            // holds (inp.stored, inp.lattice) may not: the exports read it later.
+            const bool owned = reinterpret_cast<py::detail::instance*>(self.ptr())->owned;
+            return lattice_view(v.hu.data(), v.dims, 1, self, owned);
           },
-          "HU values indexed [x, y, z] (float32, a writable view of the volume's memory, no copy)")
+          "HU values indexed [x, y, z] (float32, a view of the volume's memory, no copy): writable for a Volume "
+          "of your own (Volume(...), read_volume, phantom), read-only for one an Input holds (inp.stored, "
+          "inp.lattice); np.array(v.hu) gives a writable copy")
       .def_property_readonly(
           "body", [](const Volume& v) -> py::object {
             if (v.body.empty()) return py::none();
@@ -138,7 +165,7 @@ indexed [x, y, z]; `direction` columns are the physical directions of the index 
       "The built-in synthetic abdominal phantom (LPS index order), deterministic for given options. variant: "
       "'standard', 'thin-tissue', 'thick-fat', 'air-pockets', 'table' or 'anisotropic'.");
 
-  m.def("downsample", &downsample, py::arg("volume"), py::arg("factor"),
+  m.def("downsample", &downsample, py::arg("volume"), py::arg("factor"), py::call_guard<py::gil_scoped_release>(),
         "Block mean over complete factor^3 blocks in the volume's own index order (see docs/io.md).");
   m.def("tissue_names", [] {
     py::list names;

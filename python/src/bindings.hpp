@@ -4,8 +4,11 @@
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
+#include <pybind11/stl/filesystem.h>
 
 #include <atomic>
+#include <chrono>
+#include <filesystem>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -62,6 +65,27 @@ auto in_turn(R (*f)(Simulation&, Args...)) {
     return f(sim, std::forward<Args>(args)...);
   };
 }
+
+/// A path argument (str or os.PathLike, via std::filesystem::path) that must exist: a missing
+/// one raises FileNotFoundError with the path, as Python's own open() does.
+std::string existing_path(const std::filesystem::path& path, const char* what);
+
+/// Between the frames of a long call made without the GIL: every kCheckInterval (and after the
+/// last frame) takes the GIL to let Ctrl-C through (KeyboardInterrupt, raised as
+/// py::error_already_set between two frames, so the simulation stays usable) and to call
+/// `progress(done, total)` when one is given.
+class BetweenFrames {
+ public:
+  static constexpr std::chrono::milliseconds kCheckInterval{20};
+  BetweenFrames(py::handle progress, long total) : progress_(progress), total_(total) {}
+  /// Called without the GIL after frame `done` (1-based).
+  void operator()(long done);
+
+ private:
+  py::handle progress_;  // a handle: copied without the GIL, it must not touch reference counts
+  long total_;
+  std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now();
+};
 
 static_assert(sizeof(Vec3) == 3 * sizeof(float) && std::is_standard_layout_v<Vec3>, "Vec3 is three packed floats");
 

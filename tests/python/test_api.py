@@ -165,8 +165,10 @@ def test_errors_become_hpcm_error(phantom):
     sim = hpcm.Simulation(phantom)
     with pytest.raises(hpcm.Error, match=r"coordinate 0 = 99 is out of range \[0, 23\]"):
         sim.grab((99, 0, 0))
+    sim.grab("auto")  # move_tool without a grab is refused too (test_behaviour.py)
     with pytest.raises(hpcm.Error, match="finite"):
         sim.move_tool((float("nan"), 0, 0))
+    sim.release()
     with pytest.raises(hpcm.Error, match="frames -1 must be >= 0"):
         sim.run(-1)
 
@@ -245,7 +247,7 @@ def test_real_ct_input(tmp_path):
     assert labels.shape == (30, 25, 20)
     with pytest.raises(hpcm.Error, match="roi"):
         hpcm.load_input(str(NIFTI), roi=(0, 0, 0, 200, 10, 10))
-    with pytest.raises(hpcm.Error, match="no such file"):
+    with pytest.raises(FileNotFoundError, match="missing.nii.gz"):
         hpcm.load_input(str(tmp_path / "missing.nii.gz"))
 
 
