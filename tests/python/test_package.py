@@ -154,11 +154,15 @@ def _source_copy(tmp_path):
     return copy
 
 
+def _run_pip_install(python, tmp_path, build_dir, *args):
+    return subprocess.run([str(python), "-m", "pip", "install", "--no-build-isolation", "--no-index",
+                           "--disable-pip-version-check", "--no-cache-dir", *args, str(_source_copy(tmp_path))],
+                          cwd=tmp_path, env=_clean_env(HPCM_BUILD_DIR=str(build_dir)),
+                          capture_output=True, text=True, timeout=600)
+
+
 def _pip_install(python, tmp_path, *args):
-    out = subprocess.run([str(python), "-m", "pip", "install", "--no-build-isolation", "--no-index",
-                          "--disable-pip-version-check", "--no-cache-dir", *args, str(_source_copy(tmp_path))],
-                         cwd=tmp_path, env=_clean_env(HPCM_BUILD_DIR=BINARY_DIR),
-                         capture_output=True, text=True, timeout=600)
+    out = _run_pip_install(python, tmp_path, BINARY_DIR, *args)
     assert out.returncode == 0, out.stdout[-4000:] + out.stderr[-4000:]
 
 
@@ -215,3 +219,12 @@ def test_pip_installs_where_the_system_python_finds_it(tmp_path):
     version, file = _import_from_elsewhere(PYTHON, tmp_path, PYTHONPATH=str(package_dir.parent))
     assert version == project_version()
     assert file.is_relative_to(root)
+
+
+def test_pip_refuses_a_build_dir_that_is_not_configured(tmp_path):
+    empty = tmp_path / "not-a-build"
+    empty.mkdir()
+    out = _run_pip_install(PYTHON, tmp_path, empty, "--no-deps", "--target", str(tmp_path / "target"))
+    assert out.returncode != 0
+    assert f"HPCM_BUILD_DIR={empty}: not a configured CMake build folder" in out.stdout + out.stderr
+    assert not (tmp_path / "target" / "hpcm").exists()
