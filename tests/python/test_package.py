@@ -119,6 +119,15 @@ def test_version_is_the_cmake_project_version():
     assert hpcm.__version__ == project_version()
 
 
+@pytest.mark.skipif(not os.environ.get("HPCM_BINARY_DIR"), reason="HPCM_BINARY_DIR (the CMake build tree) not given")
+def test_the_cxx_version_header_has_the_same_version():
+    # <hpcm/version.hpp> is what the CLI's --version reads.
+    header = Path(os.environ["HPCM_BINARY_DIR"], "generated", "include", "hpcm", "version.hpp").read_text()
+    assert f'#define HPCM_VERSION_STRING "{project_version()}"' in header
+    major, minor, patch = (project_version().split(".") + ["0", "0"])[:3]
+    assert f"#define HPCM_VERSION_MAJOR {major}\n" in header and f"#define HPCM_VERSION_PATCH {patch}\n" in header
+
+
 # ---- installing ------------------------------------------------------------------------------
 
 
