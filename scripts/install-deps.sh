@@ -10,6 +10,7 @@ PKGS=(
   libglfw3-dev libimgui-dev libpng-dev libgl1-mesa-dev libgl1-mesa-dri
   python3 python3-matplotlib
   python3-dev pybind11-dev python3-numpy python3-pytest
+  python3-setuptools python3-wheel python3-pip python3-venv  # pip install . (pyproject.toml)
   python3-nibabel python3-pydicom python3-pil python3-tqdm plastimatch
   xvfb xauth
   clang lld libclang-rt-14-dev libomp-14-dev  # libFuzzer harnesses (preset fuzz: clang, lld, OpenMP)

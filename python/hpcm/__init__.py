@@ -98,7 +98,14 @@ def _params_repr(self):
 
 
 Params.update = _params_update
-Params.set = lambda self, key, value: _params_update(self, {key: value})
+
+
+def _params_set(self, key, value):
+    """Sets one parameter by its file name, validated: p.set("dynamics.alpha", 0.9)."""
+    return _params_update(self, {key: value})
+
+
+Params.set = _params_set
 Params.to_dict = _params_to_dict
 Params.__getitem__ = _params_getitem
 Params.__setitem__ = _params_setitem

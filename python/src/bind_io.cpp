@@ -59,23 +59,24 @@ stored: the input as stored (cropped to roi), in the file's own index order and 
 lattice: down-sampled and reoriented to LPS index order -- give it to Simulation.
 lattice_grid: the lattice's grid in the file's index order (stored coarsened by downsample).
 order: {"axis", "reversed"}: LPS axis p runs along stored axis axis[p], backwards if reversed[p].)")
-      .def_readonly("source", &io::Input::source)
-      .def_readonly("stored", &io::Input::stored)
-      .def_readonly("lattice", &io::Input::lattice)
+      .def_readonly("source", &io::Input::source, "the path read, or a description (\"phantom 128x128x75\")")
+      .def_readonly("stored", &io::Input::stored, "the input as stored (cropped to roi), in the file's own index order and geometry")
+      .def_readonly("lattice", &io::Input::lattice, "down-sampled and reoriented to LPS index order: give it to Simulation")
       .def_property_readonly("body", [](const io::Input& in) { return bool_lattice(in.lattice.body, in.lattice.dims); },
                              "the body on the lattice (SPEC §3), indexed [x, y, z] in LPS order: read-only bool array "
                              "(a copy); elements outside it are left out of every per-class statistic")
-      .def_property_readonly("lattice_grid", [](const io::Input& in) { return grid_dict(in.lattice_grid); })
+      .def_property_readonly("lattice_grid", [](const io::Input& in) { return grid_dict(in.lattice_grid); },
+                             "the lattice's grid in the file's index order (stored coarsened by downsample), a dict")
       .def_property_readonly("order", [](const io::Input& in) {
             py::dict d;
             d["axis"] = py::make_tuple(in.order.axis[0], in.order.axis[1], in.order.axis[2]);
             d["reversed"] = py::make_tuple(in.order.reversed[0], in.order.reversed[1], in.order.reversed[2]);
             return d;
-          })
-      .def_readonly("downsample", &io::Input::downsample)
+          }, "{\"axis\", \"reversed\"}: LPS axis p runs along stored axis axis[p], backwards if reversed[p]")
+      .def_readonly("downsample", &io::Input::downsample, "the down-sampling factor (stored voxels per lattice unit and axis)")
       .def_property_readonly("roi", [](const io::Input& in) {
             return py::make_tuple(in.roi.lo.x, in.roi.lo.y, in.roi.lo.z, in.roi.hi.x, in.roi.hi.y, in.roi.hi.z);
-          })
+          }, "the stored box of the file, (x0, y0, z0, x1, y1, z1) voxels, upper bounds exclusive")
       .def_property_readonly("left_out", [](const io::Input& in) { return int3_tuple(in.left_out); },
                              "stored voxels per axis beyond the last complete down-sampling block");
 
@@ -134,7 +135,7 @@ order: {"axis", "reversed"}: LPS axis p runs along stored axis axis[p], backward
           out.append(d);
         }
         return out;
-      }, py::arg("directory"));
+      }, py::arg("directory"), "The DICOM series in `directory`: a list of dicts (uid, modality, description, files, rows, columns).");
 
   // The exports read a simulation that other Python threads may be stepping: each takes the
   // simulation's turn, then compute without the GIL.
@@ -153,17 +154,17 @@ order: {"axis", "reversed"}: LPS axis p runs along stored axis axis[p], backward
         SimulationTurn turn(sim);
         py::gil_scoped_release release;
         io::write_displacement_field(in, sim.model(), positions_of(sim), path.string());
-      }, py::arg("input"), py::arg("simulation"), py::arg("path"));
+      }, py::arg("input"), py::arg("simulation"), py::arg("path"), "Writes displacement_mm(input, simulation) to `path` (.nii, .nii.gz, .nrrd, .mha by its extension).");
   m.def("write_label_map", [](const io::Input& in, GuardedSimulation& sim, const std::filesystem::path& path) {
         SimulationTurn turn(sim);
         py::gil_scoped_release release;
         io::write_label_map(in, sim.model(), path.string());
-      }, py::arg("input"), py::arg("simulation"), py::arg("path"));
+      }, py::arg("input"), py::arg("simulation"), py::arg("path"), "Writes the tissue class label map (uint8: 0 air .. 3 bone, 4 outside the body) on input.lattice_grid to `path`, a Slicer colour table (.ctbl) beside it.");
   m.def("write_deformed_volume", [](const io::Input& in, GuardedSimulation& sim, const std::filesystem::path& path) {
         SimulationTurn turn(sim);
         py::gil_scoped_release release;
         io::write_deformed_volume(in, sim.model(), positions_of(sim), path.string());
-      }, py::arg("input"), py::arg("simulation"), py::arg("path"));
+      }, py::arg("input"), py::arg("simulation"), py::arg("path"), "Writes the deformed CT on input.stored's grid to `path` by inverse mapping (air where the rest position lies outside).");
   m.def("export_frame", [](const io::Input& in, GuardedSimulation& sim, const std::filesystem::path& folder,
                            const std::string& tag, bool nrrd_field) {
         SimulationTurn turn(sim);

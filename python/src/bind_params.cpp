@@ -26,7 +26,7 @@ Params() holds the defaults. Read and set values by their file names:
 Params.load(path) / Params.from_toml(text) read parameter files; p.to_toml() writes one.)")
       .def(py::init<>())
       .def("validate", &Params::validate, "Raises hpcm.Error naming the key and the valid range.")
-      .def("copy", [](const Params& p) { return Params(p); })
+      .def("copy", [](const Params& p) { return Params(p); }, "An independent copy.")
       .def("__copy__", [](const Params& p) { return Params(p); })
       .def("__deepcopy__", [](const Params& p, py::dict) { return Params(p); }, py::arg("memo"))
       .def("__eq__", [](const Params& a, const Params& b) { return a == b; }, py::is_operator())
@@ -58,16 +58,16 @@ Scenario.from_toml(text) read scenario files (docs/scenarios.md).)")
                   py::arg("hold") = 10, py::arg("record") = 120,
                   "Pull the anterior skin point by `distance` lattice units (toward -y) over `pull` frames, hold "
                   "`hold` frames, release, record `record` frames.")
-      .def_readwrite("name", &Scenario::name)
+      .def_readwrite("name", &Scenario::name, "the scenario's name (reports and file names)")
       .def_readwrite("frames", &Scenario::frames, "total frames to play")
       .def_property_readonly("grabs", [](const Scenario& s) { return s.grabs.size(); }, "number of grab actions")
-      .def("last_release_frame", &Scenario::last_release_frame)
+      .def("last_release_frame", &Scenario::last_release_frame, "The frame of the last release (the first idle frame after it), or -1 without grabs.")
 #if defined(HPCM_WITH_CONFIG)
       .def_static("load", [](const std::filesystem::path& path) { return config::load_scenario(existing_path(path, "scenario file")); },
-                  py::arg("path"))
+                  py::arg("path"), "Reads a scenario file (docs/scenarios.md).")
       .def_static("from_toml", [](const std::string& text, const std::string& source) { return config::parse_scenario(text, source); },
-                  py::arg("text"), py::arg("source") = "<string>")
-      .def("to_toml", [](const Scenario& s) { return config::scenario_to_toml(s); })
+                  py::arg("text"), py::arg("source") = "<string>", "Parses scenario-file text; errors name `source`.")
+      .def("to_toml", [](const Scenario& s) { return config::scenario_to_toml(s); }, "The complete scenario file of this scenario.")
 #endif
       .def("__repr__", [](const Scenario& s) {
         return "<hpcm.Scenario '" + s.name + "', " + std::to_string(s.frames) + " frames, " + std::to_string(s.grabs.size()) +

@@ -326,7 +326,7 @@ void bind_simulation(py::module_& m) {
   for_each_frame_report_field([&](const char* name, auto member, const char* doc) {
     report.def_property_readonly(name, [member](const FrameReport& r) { return field_value(r.*member); }, doc);
   });
-  report.def("to_dict", &report_dict).def("__repr__", [](const FrameReport& r) {
+  report.def("to_dict", &report_dict, "Every field as a dict.").def("__repr__", [](const FrameReport& r) {
     return "<hpcm.FrameReport frame " + std::to_string(r.frame) + (r.deform ? " deform" : " idle") + ", " +
            std::to_string(r.moved_elements) + " moved, " + std::to_string(r.sim_total_ms) + " ms>";
   });
@@ -358,7 +358,7 @@ Simulation(lattice, params=Params(), backend="cpu"): `lattice` is a Volume in LP
 indexed [x, y, z] with x right->left, y anterior->posterior (anterior is -y), z inferior->superior.
 Several threads may call one Simulation: the calls run one at a time.)")
       .def(py::init(&make_simulation), py::arg("lattice"), py::arg("params") = Params{}, py::arg("backend") = "cpu")
-      .def_property_readonly("dims", in_turn(+[](Simulation& s) { return int3_tuple(s.model().dims); }))
+      .def_property_readonly("dims", in_turn(+[](Simulation& s) { return int3_tuple(s.model().dims); }), "elements per lattice axis (nx, ny, nz)")
       .def_property_readonly("size", in_turn(+[](Simulation& s) { return s.model().size(); }), "number of elements")
       .def_property_readonly("spacing", in_turn(+[](Simulation& s) {
             const auto& v = s.model().spacing;
@@ -368,20 +368,23 @@ Several threads may call one Simulation: the calls run one at a time.)")
             const auto& v = s.model().origin;
             return py::make_tuple(v[0], v[1], v[2]);
           }), "LPS mm of element (0, 0, 0)")
-      .def_property_readonly("direction", in_turn(+[](Simulation& s) { return matrix3(s.model().direction); }))
+      .def_property_readonly("direction", in_turn(+[](Simulation& s) { return matrix3(s.model().direction); }),
+                             "LPS direction cosines of the lattice axes (columns), 3x3")
       .def_property("params", in_turn(+[](Simulation& s) { return s.params(); }),
                     in_turn(+[](Simulation& s, const Params& p) { s.set_params(p); }),
                     "A copy of the parameters; assigning applies new ones (validated).")
-      .def_property_readonly("backend", in_turn(+[](Simulation& s) { return backend_name(s.backend().kind()); }))
-      .def_property_readonly("frame", in_turn(+[](Simulation& s) { return s.frame(); }))
-      .def_property_readonly("grabbing", in_turn(+[](Simulation& s) { return s.grabbing(); }))
+      .def_property_readonly("backend", in_turn(+[](Simulation& s) { return backend_name(s.backend().kind()); }), "\"cpu\" or \"cuda\"")
+      .def_property_readonly("frame", in_turn(+[](Simulation& s) { return s.frame(); }), "frames stepped so far")
+      .def_property_readonly("grabbing", in_turn(+[](Simulation& s) { return s.grabbing(); }), "whether elements are grabbed")
       .def_property_readonly("grab_centre", in_turn(+[](Simulation& s) -> py::object {
             return s.grab_centre() < 0 ? py::object(py::none()) : py::object(int3_tuple(s.model().coords(s.grab_centre())));
-          }))
+          }), "(x, y, z) of the grab centre, None when nothing is grabbed")
       .def_property_readonly("tool_offset", in_turn(+[](Simulation& s) { return vec3_tuple(s.tool_offset()); }),
                              "the offset the grabbed elements follow (the requested one, limited to what the tissue allows)")
-      .def_property_readonly("requested_offset", in_turn(+[](Simulation& s) { return vec3_tuple(s.requested_offset()); }))
-      .def_property_readonly("tool_limited", in_turn(+[](Simulation& s) { return s.tool_limited(); }))
+      .def_property_readonly("requested_offset", in_turn(+[](Simulation& s) { return vec3_tuple(s.requested_offset()); }),
+                             "the tool offset last asked for by move_tool, lattice units")
+      .def_property_readonly("tool_limited", in_turn(+[](Simulation& s) { return s.tool_limited(); }),
+                             "the tissue could not follow the tool this far: tool_offset is limited")
       .def_property_readonly("tool_limit", in_turn(+[](Simulation& s) {
             return py::make_tuple(vec3_tuple(s.tool_limit_lo()), vec3_tuple(s.tool_limit_hi()));
           }), "feasible tool offsets of the current grab, ((lo x, y, z), (hi x, y, z)), lattice units")
@@ -443,7 +446,7 @@ Several threads may call one Simulation: the calls run one at a time.)")
            py::arg("offset") = py::none(), py::arg("offset_mm") = py::none(),
            "Move the grabbed elements to their grab positions + offset: `offset` in lattice units or `offset_mm` "
            "in millimetres along the lattice axes (LPS; divided by the lattice spacing per axis), exactly one.")
-      .def("release", in_turn(+[](Simulation& s) { s.release(); }))
+      .def("release", in_turn(+[](Simulation& s) { s.release(); }), "Let go of the grabbed elements.")
       .def("step", in_turn(+[](Simulation& s, bool speeds, bool link_violation, bool cell_jacobian) {
             const StepOptions o = step_options(speeds, link_violation, cell_jacobian);
             py::gil_scoped_release release;
@@ -507,11 +510,11 @@ Several threads may call one Simulation: the calls run one at a time.)")
       .def_property_readonly("done", [](GuardedPlayer& p) {
             SimulationTurn turn(p.sim);
             return p.player.done();
-          })
+          }, "whether every frame of the scenario has been played")
       .def_property_readonly("frame", [](GuardedPlayer& p) {
             SimulationTurn turn(p.sim);
             return p.player.frame();
-          })
+          }, "the scenario frame played next")
       .def("step", [](GuardedPlayer& p, bool speeds, bool link_violation, bool cell_jacobian) {
             const StepOptions o = step_options(speeds, link_violation, cell_jacobian);
             SimulationTurn turn(p.sim);
