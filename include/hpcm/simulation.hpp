@@ -133,12 +133,6 @@ class Simulation {
   };
   std::uint64_t positions_version_ = 0;
   Metric link_metric_, jacobian_metric_;
-  // With a body (Model::region), the per-class speeds count the body only; the backends reduce
-  // over every element, so they are measured here from the frame-end positions, kept for the
-  // next frame while nothing else moved them.
-  std::vector<Vec3> speed_ref_;
-  int speed_ref_frame_ = -1;
-  std::uint64_t speed_ref_version_ = 0;
 };
 
 }  // namespace hpcm

@@ -47,6 +47,7 @@ void layer_row(Storage& st, const dynamics::LayerConstants& k, const LayerRow& r
   float* q_[3] = {st.q[0].data(), st.q[1].data(), st.q[2].data()};
   float* v_[3] = {st.v[0].data(), st.v[1].data(), st.v[2].data()};
   const std::uint8_t* const tissue = st.tissue.data();
+  const std::uint8_t* const stat_class = st.stat_class.data();
   const std::uint8_t* const flags = st.flags.data();
   const std::uint8_t* const col_asleep = r.col_asleep;
   std::uint8_t* const col_velocity = r.col_velocity;
@@ -157,10 +158,11 @@ void layer_row(Storage& st, const dynamics::LayerConstants& k, const LayerRow& r
     if (speeds) {
       const V sp = norm3<V>(out[0] - pre[0], out[1] - pre[1], out[2] - pre[2]);
       for (int l = 0; l < count; ++l) {
-        const int tl = t[l];
-        speeds->sum[tl] += sp[l];
-        speeds->max[tl] = std::max(speeds->max[tl], sp[l]);
         if (sp[l] > 0) ++speeds->moved;
+        const int c = stat_class[e + l];
+        if (c == kTissueCount) continue;  // outside the body: not in the statistics (SPEC §3)
+        speeds->sum[c] += sp[l];
+        speeds->max[c] = std::max(speeds->max[c], sp[l]);
       }
     }
   }

@@ -39,6 +39,7 @@ void Storage::load(const Model& m, const State& s, WorkerPool& pool) {
   time.assign(np, std::numeric_limits<float>::infinity(), next());
   weight.assign(np, 1.0f, next());
   tissue.assign(np, 0, next());
+  stat_class.assign(np, kTissueCount, next());
   flags.assign(np, kFixed, next());  // padding and stagger gaps never move
   for_each_element(lay, pool, [&](std::size_t u, std::size_t k) {
     for (int a = 0; a < 3; ++a) {
@@ -48,6 +49,7 @@ void Storage::load(const Model& m, const State& s, WorkerPool& pool) {
     }
     weight[k] = 1.0f / (m.tau[u] + 1e-4f);  // as in solver::relax_element
     tissue[k] = m.tissue[u];
+    stat_class[k] = m.counted(static_cast<Index>(u)) ? m.tissue[u] : kTissueCount;
     flags[k] = (s.flags[u] & kFixed) ? 0 : s.flags[u];  // the FIXED set is given per frame (set_fixed)
   });
 }

@@ -112,6 +112,9 @@ struct Storage {
   StaggeredArray<float> weight;      ///< relaxation weight 1 / (tau + 1e-4) of the element
   StaggeredArray<float> link_tau[3];  ///< tolerance of the element's +x, +y, +z link
   StaggeredArray<std::uint8_t> tissue;
+  /// Class whose speed statistics count the element: its tissue, or kTissueCount for an element
+  /// outside the body (SPEC §3), which the statistics leave out.
+  StaggeredArray<std::uint8_t> stat_class;
   StaggeredArray<std::uint8_t> flags;     ///< ElementFlags
   static constexpr std::size_t kPad = 16;
 

@@ -101,6 +101,7 @@ class DeviceBackend final : public Backend {
     L_.flags = alloc<std::uint8_t>(N4, "flags");
     L_.tau = alloc<float>(N, "element tolerances");
     L_.tissue = alloc<std::uint8_t>(N, "tissue classes");
+    L_.stat_class = alloc<std::uint8_t>(N, "statistics classes");
     for (int a = 0; a < 3; ++a) L_.link_index[a] = alloc<std::uint16_t>(N, "link indices");
     L_.link_table = alloc<LinkLimits>(m.link_table.size(), "link table");
     L_.touched = alloc<std::uint8_t>(NB, "brick flags");
@@ -132,6 +133,10 @@ class DeviceBackend final : public Backend {
     std::vector<float> buf(N);
     x_.upload(const_cast<float*>(L_.tau), m.tau.data(), N * sizeof(float));
     x_.upload(const_cast<std::uint8_t*>(L_.tissue), m.tissue.data(), N);
+    std::vector<std::uint8_t> stat_class(N);
+    for (std::size_t i = 0; i < N; ++i)
+      stat_class[i] = m.counted(static_cast<Index>(i)) ? m.tissue[i] : static_cast<std::uint8_t>(kTissueCount);
+    x_.upload(const_cast<std::uint8_t*>(L_.stat_class), stat_class.data(), N);
     for (int a = 0; a < 3; ++a)
       x_.upload(const_cast<std::uint16_t*>(L_.link_index[a]), m.link_index[a].data(), N * sizeof(std::uint16_t));
     x_.upload(const_cast<LinkLimits*>(L_.link_table), m.link_table.data(), m.link_table.size() * sizeof(LinkLimits));

@@ -99,8 +99,8 @@ HPCM_HD inline float bits_float(unsigned u) {
 // ---------------------------------------------------------------------------------------------
 
 /// Device pointers and geometry, passed by value to every kernel.
-/// Per element: pos, pre, vel 3 x 12 B, time 4, tau 4, link index 3 x 2, tissue 1, flags 1
-/// = 52 bytes, plus the Model's link table (at most 65,536 x 16 bytes).
+/// Per element: pos, pre, vel 3 x 12 B, time 4, tau 4, link index 3 x 2, tissue 1, statistics
+/// class 1, flags 1 = 53 bytes, plus the Model's link table (at most 65,536 x 16 bytes).
 struct Lattice {
   int nx = 0, ny = 0, nz = 0;
   long long n = 0;
@@ -112,6 +112,8 @@ struct Lattice {
   std::uint8_t* flags = nullptr;  ///< ElementFlags | internal bits; 4-byte aligned, padded
   const float* tau = nullptr;     ///< element tolerance (relaxation weights)
   const std::uint8_t* tissue = nullptr;
+  /// Tissue, or kTissueCount outside the body (SPEC §3): the class whose speed statistics count it.
+  const std::uint8_t* stat_class = nullptr;
   const std::uint16_t* link_index[3] = {nullptr, nullptr, nullptr};  ///< Model::link_index
   const LinkLimits* link_table = nullptr;                            ///< Model::link_table
   // per brick
@@ -818,9 +820,12 @@ HPCM_HD void layer_block(const LayerArgs& a, long long b, LayerShared& sh, B& bl
       if (!(out == post)) moved = true;
       if (a.speeds) {
         const float sp = norm(out - before);
-        ls[t] += sp;
-        lm[t] = lm[t] > sp ? lm[t] : sp;
         if (sp > 0) ++lc;
+        const int c = L.stat_class[i];
+        if (c < kTissueCount) {  // outside the body: not in the statistics (SPEC §3)
+          ls[c] += sp;
+          lm[c] = lm[c] > sp ? lm[c] : sp;
+        }
       }
     }
     if (anyv) sh.anyv = 1;

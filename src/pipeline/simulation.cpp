@@ -41,23 +41,6 @@ Simulation::Simulation(Model model, Params params, std::unique_ptr<Backend> back
 
 Simulation::~Simulation() = default;
 
-namespace {
-// Per-class speed sums and maxima over the body's elements, in a fixed order (reproducible).
-SpeedStats body_speed_stats(const Model& m, const std::vector<Vec3>& before, const std::vector<Vec3>& after) {
-  std::array<double, kTissueCount> sum{};
-  SpeedStats s;
-  for (Index i = 0; i < m.size(); ++i) {
-    if (!m.counted(i)) continue;
-    const float v = norm(after[static_cast<std::size_t>(i)] - before[static_cast<std::size_t>(i)]);
-    const int t = m.tissue[static_cast<std::size_t>(i)];
-    sum[t] += v;
-    s.max[t] = std::max(s.max[t], v);
-  }
-  for (int t = 0; t < kTissueCount; ++t) s.sum[t] = static_cast<float>(sum[t]);
-  return s;
-}
-}  // namespace
-
 void Simulation::set_params(const Params& p) {
   p.validate();
   const bool materials = p.tissue.t1 != params_.tissue.t1 || p.tissue.t2 != params_.tissue.t2 ||
@@ -229,9 +212,6 @@ FrameReport Simulation::step(const StepOptions& opt) {
   r.requested_offset_mm = r.deform ? offset_length_mm(model_, requested_offset_) : 0.0;
   r.tool_limited = r.deform && tool_limited();
   Backend& b = *backend_;
-  const bool body_speeds = opt.speeds && !model_.region.empty();
-  if (body_speeds && (speed_ref_frame_ != frame_ || speed_ref_version_ != positions_version_))
-    b.download_positions(speed_ref_);  // X_end(t-1)
   b.mark(0);
   b.snapshot();  // X- <- X
   b.mark(1);
@@ -279,16 +259,6 @@ FrameReport Simulation::step(const StepOptions& opt) {
   r.sim_total_ms = r.snapshot_ms + r.chainmail_ms + r.inertia_ms;
   r.active_bricks = b.active_bricks();
   r.active_elements = b.active_elements();
-  if (body_speeds) {
-    std::vector<Vec3> now;
-    b.download_positions(now);
-    const SpeedStats all = sp;
-    sp = body_speed_stats(model_, speed_ref_, now);
-    sp.moved = all.moved;  // moved elements: every element, like the backend's
-    speed_ref_ = std::move(now);
-    speed_ref_frame_ = frame_ + 1;
-    speed_ref_version_ = positions_version_;
-  }
   if (opt.speeds) {
     r.moved_elements = sp.moved;
     const auto& count = model_.counted_class_count;  // the body's elements (every element without one)

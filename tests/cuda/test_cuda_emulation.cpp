@@ -27,17 +27,17 @@ Factory emulated(int blocks = 3) {
 
 TEST(CudaEmulation, MemoryPerElementAtThePapersScale) {
   // 128x128x75 (1,228,800 elements, the paper's lattice): the backend's allocations, counted
-  // by the same code that runs on the GPU: 52 bytes per element (positions, X-, velocities,
-  // times, tolerances, three 16-bit link indices, tissue, flags), the link table and per-brick
-  // bookkeeping on top.
+  // by the same code that runs on the GPU: 53 bytes per element (positions, X-, velocities,
+  // times, tolerances, three 16-bit link indices, tissue, statistics class, flags), the link
+  // table and per-brick bookkeeping on top.
   const Params p;
   const Model m = phantom_model({128, 128, 75}, p);
   gpu::DeviceBackend<gpu::EmuExec> b;
   b.load(m, p, State::rest(m));
   const double per = static_cast<double>(b.device_bytes()) / static_cast<double>(m.size());
   std::printf("[parity] device bytes per element at 128x128x75: %.2f\n", per);
-  EXPECT_LE(per, 56.0);
-  EXPECT_GE(per, 52.0);
+  EXPECT_LE(per, 57.0);
+  EXPECT_GE(per, 53.0);
 }
 
 // The device reads the Model's own link table: a hand-edited link (not the material's value at
