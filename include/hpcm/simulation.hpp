@@ -44,6 +44,9 @@ Vec3 grab_radii_of_mm(const Model& m, float radius_mm);
 /// The rule for a radius given with a grab: [0, kMaxGrabRadius], 0 meaning
 /// params.solver.grab_radius. Anything else (negative, NaN, larger) throws Error naming `what`.
 void check_grab_radius(float radius, const std::string& what);
+/// The rule for a radius in millimetres on lattice `m`: > 0 and at most kMaxGrabRadius lattice
+/// units along every axis. Anything else throws Error naming `what`.
+void check_grab_radius_mm(const Model& m, float radius_mm, const std::string& what);
 
 struct StepOptions {
   bool speeds = true;               ///< reduce per-tissue speeds (costs a little)

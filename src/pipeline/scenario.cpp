@@ -76,11 +76,7 @@ void Scenario::validate(const Model& m) const {
     if (g.start < 0) throw Error(key + ".start must be >= 0");
     if (g.release < 1) throw Error(key + ".release must be >= 1");
     if (g.radius_units == Units::mm) {
-      const Vec3 r = grab_radii_of_mm(m, g.radius);
-      if (!(g.radius > 0) || !(std::max({r.x, r.y, r.z}) <= kMaxGrabRadius))
-        throw Error(key + ".radius_mm = " + number(g.radius) + " is out of range: > 0 mm and at most " +
-                    number(kMaxGrabRadius) + " lattice units along every axis (" +
-                    number(kMaxGrabRadius * std::min({m.spacing[0], m.spacing[1], m.spacing[2]})) + " mm on this lattice)");
+      check_grab_radius_mm(m, g.radius, key + ".radius_mm");
     } else {
       check_grab_radius(g.radius, key + ".radius");
     }

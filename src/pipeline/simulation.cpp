@@ -29,6 +29,14 @@ void check_grab_radius(float radius, const std::string& what) {
   throw Error(msg.str());
 }
 
+void check_grab_radius_mm(const Model& m, float radius_mm, const std::string& what) {
+  const Vec3 r = grab_radii_of_mm(m, radius_mm);
+  if (radius_mm > 0 && std::max({r.x, r.y, r.z}) <= kMaxGrabRadius) return;
+  throw Error(what + " = " + fmt_number(radius_mm) + " is out of range: it must be > 0 mm and at most " +
+              fmt_number(kMaxGrabRadius) + " lattice units along every axis (" +
+              fmt_number(kMaxGrabRadius * std::min({m.spacing[0], m.spacing[1], m.spacing[2]})) + " mm on this lattice)");
+}
+
 Simulation::Simulation(Model model, Params params, BackendKind backend)
     : Simulation(std::move(model), std::move(params), make_backend(backend)) {}
 
@@ -132,14 +140,8 @@ void Simulation::grab(Index centre, float radius) {
 }
 
 void Simulation::grab_mm(Index centre, float radius_mm) {
-  const Vec3 r = grab_radii_of_mm(model_, radius_mm);
-  const float widest = std::max({r.x, r.y, r.z});
-  if (!(radius_mm > 0) || !(widest <= kMaxGrabRadius))
-    throw Error("grab radius_mm = " + fmt_number(radius_mm) + " is out of range: it must be > 0 mm and at most " +
-                fmt_number(kMaxGrabRadius) + " lattice units along every axis (here " +
-                fmt_number(kMaxGrabRadius * static_cast<float>(std::min({model_.spacing[0], model_.spacing[1], model_.spacing[2]}))) +
-                " mm)");
-  grab_within(centre, r);
+  check_grab_radius_mm(model_, radius_mm, "grab radius_mm");
+  grab_within(centre, grab_radii_of_mm(model_, radius_mm));
 }
 
 void Simulation::grab_within(Index centre, Vec3 radii) {

@@ -132,7 +132,7 @@ TEST(ScenarioUnits, MillimetresOutOfRangeNameTheFieldAndRange) {
   };
   const float nan = std::numeric_limits<float>::quiet_NaN();
   EXPECT_CONTAINS(error_of(pull_scenario({0, -5, 0}, Units::mm, -1.0f, Units::mm)),
-                  "grab[0].radius_mm = -1 is out of range: > 0 mm and at most 64 lattice units along every axis");
+                  "grab[0].radius_mm = -1 is out of range: it must be > 0 mm and at most 64 lattice units along every axis");
   EXPECT_CONTAINS(error_of(pull_scenario({0, -5, 0}, Units::mm, nan, Units::mm)), "grab[0].radius_mm = nan is out of range");
   // 64 lattice units along the finest axis is the largest radius on this lattice.
   const double most_mm = 64 * std::min({m.spacing[0], m.spacing[1], m.spacing[2]});
