@@ -6,10 +6,11 @@
 # Parts that need /usr/bin/python3 with pydicom (DICOM tag edits) or the shared data say SKIP
 # and are left out; everything else always runs.
 set -u
+HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)  # before any cd
 HPCM=$1 SRC=$2 DATA=$3 OUT=$4
 rm -rf "$OUT" && mkdir -p "$OUT"
 cd "$OUT" || exit 1
-source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
+source "$HERE/lib.sh" || exit 1
 
 # ---- 1. no shell ------------------------------------------------------------------------------
 # The tree has no system()/popen() call (helper programs start with an argument vector).

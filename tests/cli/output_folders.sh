@@ -4,10 +4,11 @@
 # before anything runs.
 # usage: output_folders.sh HPCM_BINARY SCRATCH_DIR
 set -u
+HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)  # before any cd
 HPCM=$1 OUT=$2
 rm -rf "$OUT" && mkdir -p "$OUT"
 cd "$OUT" || exit 1
-source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
+source "$HERE/lib.sh" || exit 1
 EXPORTS="displacement_final.nii.gz displacement_final.nrrd deformed_final.nii.gz labels.nii.gz labels.ctbl export.json"
 has_exports() {  # has_exports DIR: every export file is there
   for f in $EXPORTS; do [ -s "$1/$f" ] || return 1; done
