@@ -97,6 +97,13 @@ def write_inputs(d, curves):
         "checks": {
             "A_no_overshoot": {"holds": True, "value": 0.0, "threshold": 0.0, "spec": "8.1",
                                "description": "largest increase of the grab centre's distance from rest after release"},
+            "B_overshoot": {"status": "not_applicable", "holds": False, "value": 2e-4, "threshold": 1e-3, "spec": "8.2",
+                            "reason": "achieved pull 0.02 lattice units, below 0.5",
+                            "description": "largest distance of the grab centre beyond rest"},
+            "C_skin_muscle_peak_ratio": {"status": "held", "holds": True, "value": None, "threshold": 10, "spec": "8.8",
+                                         "description": "skin_fat Peak / muscle_organ Peak under C"},
+            "C_far_field_share_skin_fat": {"status": "held", "holds": True, "value": 0.031, "threshold": 0.1,
+                                           "spec": "8.8", "description": "far share"},
             "C_settles_5pct": {"holds": True, "value": 0.012, "threshold": 0.05, "spec": "8.3",
                                "description": "skin&fat mean speed at the end / peak under C"},
             "settle_2000": {"holds": False, "value": 3.2e-6, "threshold": 1e-6, "spec": "8.5",
@@ -152,7 +159,10 @@ def test_good(root):
         md = open(md_path, encoding="utf-8").read()
         for needle in ["# hpcm experiment report", "96 x 96 x 64", "phantom 96,96,64", "Backend: cpu",
                        "selftest machine", "## Table 2", "## Table 3", "![Figure 3", "(figure3.png)", "(figure4.png)",
-                       "## Behaviour checks", "`A_no_overshoot`", "`settle_2000`", "✓", "✗", "NOT all hold",
+                       "## Behaviour checks", "`A_no_overshoot`", "`settle_2000`", "✓ held", "✗ failed", "some failed",
+                       "not applicable (achieved pull 0.02 lattice units, below 0.5)",
+                       "4 held, 1 failed, 1 not applicable, of 6", "| `C_skin_muscle_peak_ratio` | 26.3 | n/a | >= 10 |",
+                       "| `C_skin_muscle_auc_ratio` | 18.7 | not reported |", "| `C_far_field_share_skin_fat` | not given | 0.031 |",
                        "0.692066", "0.000856", "0.001233", "1,228,800", "RTX 4070", "2.64", "3.23", "3.15",
                        "compare the shapes", "| C | skin & fat |",
                        "Counted elements: body: 400000 elements (selftest); left out of the statistics: 189824"]:
@@ -232,6 +242,12 @@ def test_malformed(root, good):
         ("summary_checks", summary_edit(lambda s: s.pop("checks")), "missing key 'checks'"),
         ("summary_holds", summary_edit(lambda s: s["checks"]["A_no_overshoot"].update(holds="yes")),
          "checks.A_no_overshoot.holds: expected bool"),
+        ("summary_status", summary_edit(lambda s: s["checks"]["A_no_overshoot"].update(status="maybe")),
+         "checks.A_no_overshoot.status: 'maybe' is not one of held, failed, not_applicable"),
+        ("summary_status_holds", summary_edit(lambda s: s["checks"]["A_no_overshoot"].update(status="failed")),
+         "checks.A_no_overshoot: holds true contradicts status 'failed'"),
+        ("summary_reason", summary_edit(lambda s: s["checks"]["B_overshoot"].pop("reason")),
+         "checks.B_overshoot: missing key 'reason'"),
         ("summary_dims", summary_edit(lambda s: s["lattice"].update(dims=[96, 96])), "lattice.dims must be 3 positive integers"),
     ]
     for name, mutate, want in cases:

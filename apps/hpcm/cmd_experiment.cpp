@@ -1,6 +1,7 @@
 // hpcm experiment: conditions A/B/C of the paper on identical input, the tables, the SPEC §8
 // checks, figures and a Markdown report.
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -158,7 +159,8 @@ void register_experiment(CLI::App& app) {
     js["backend"] = backend_name(eo.backend);
     js["machine"] = machine_description();
     js["scenario"] = {{"name", eo.scenario.name}, {"frames", eo.scenario.frames}, {"release_frame", r.release_frame},
-                      {"recorded_frames", r.recorded_frames}, {"settle_frames", eo.settle_frames}, {"grab_centre", r.grab_centre}};
+                      {"recorded_frames", r.recorded_frames}, {"settle_frames", eo.settle_frames}, {"grab_centre", r.grab_centre},
+                      {"far_field_distance", r.far_field_distance}};
     const Int3 gc = m.coords(r.grab_centre);
     js["scenario"]["grab_centre_xyz"] = {gc.x, gc.y, gc.z};
     js["params"] = params_json(p);
@@ -202,6 +204,14 @@ void register_experiment(CLI::App& app) {
       t3 << buf;
       jc["timing_ms"] = {{"chainmail", c.chainmail_ms}, {"inertia", c.inertia_ms}, {"snapshot", c.snapshot_ms}, {"sim_total", c.sim_total_ms}};
       jc["settle_max_speed"] = c.settle_max_speed;
+      // SPEC §8.8: share of each class's AUC after release carried by the far field (null: the
+      // class did not move).
+      auto& ff = jc["far_field_share"];
+      ff = nlohmann::json::object();
+      for (int t = 0; t < kTissueCount; ++t) {
+        const double share = far_field_share(c.far_speed_sum, c.total_speed_sum, t);
+        ff[tissue_name(t)] = share >= 0 ? nlohmann::json(share) : nlohmann::json(nullptr);
+      }
       jc["limited_pulls"] = nlohmann::json::array();
       for (const LimitedPull& lp : c.limited_pulls) jc["limited_pulls"].push_back(limited_pull_json(lp, m));
       nlohmann::json track = nlohmann::json::array();
@@ -212,9 +222,17 @@ void register_experiment(CLI::App& app) {
       }
       jc["grab_centre_displacement"] = track;
     }
-    for (const auto& ch : r.checks)
-      js["checks"][ch.name] = {{"holds", ch.holds}, {"value", ch.value}, {"threshold", ch.threshold}, {"spec", ch.spec},
-                               {"description", ch.description}};
+    // "holds" (true only when held) stays for older readers; "status" says held, failed or
+    // not_applicable, the last with its reason. A ratio over 0 (+inf) is written as null.
+    for (const auto& ch : r.checks) {
+      auto& jc = js["checks"][ch.name];
+      jc = {{"status", check_status_name(ch.status)}, {"holds", ch.holds()}, {"threshold", ch.threshold},
+            {"spec", ch.spec}, {"description", ch.description}};
+      jc["value"] = std::isfinite(ch.value) ? nlohmann::json(ch.value) : nlohmann::json(nullptr);
+      if (!ch.applicable()) jc["reason"] = ch.reason;
+    }
+    js["check_counts"] = {{"held", r.count(CheckStatus::Held)}, {"failed", r.count(CheckStatus::Failed)},
+                          {"not_applicable", r.count(CheckStatus::NotApplicable)}};
     js["all_hold"] = r.all_hold();
     write_text_file(dir + "/curves.csv", curves.str());
     write_text_file(dir + "/table2.csv", t2.str());
@@ -233,13 +251,15 @@ void register_experiment(CLI::App& app) {
     }
     out.commit();
     print_limited_pulls(r, m, sc_label);
-    int held = 0;
-    for (const auto& ch : r.checks) held += ch.holds;
-    std::printf("experiment: %lld elements, checks %d/%zu hold; wrote %s/{curves.csv,table2.csv,table3.csv,activity.csv,summary.json%s}\n",
-                static_cast<long long>(m.size()), held, r.checks.size(), out.final_path().c_str(),
+    std::printf("experiment: %lld elements, checks: %d held, %d failed, %d not applicable (of %zu); wrote "
+                "%s/{curves.csv,table2.csv,table3.csv,activity.csv,summary.json%s}\n",
+                static_cast<long long>(m.size()), r.count(CheckStatus::Held), r.count(CheckStatus::Failed),
+                r.count(CheckStatus::NotApplicable), r.checks.size(), out.final_path().c_str(),
                 o->no_report ? "" : ",figure3.png,figure4.png,figure5.png,report.md");
     for (const auto& ch : r.checks)
-      if (!ch.holds) std::printf("  does not hold: %s: value %.6g, threshold %.6g (%s)\n", ch.name.c_str(), ch.value, ch.threshold, ch.description.c_str());
+      if (ch.failed())
+        std::printf("  failed: %s: value %.6g, threshold %.6g (%s)\n", ch.name.c_str(), ch.value, ch.threshold,
+                    ch.description.c_str());
   });
 }
 

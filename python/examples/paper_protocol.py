@@ -60,7 +60,9 @@ def print_tables(result):
         print(f"{label:6s}{c['chainmail_ms']:11.3f}{c['inertia_ms']:9.3f}{c['snapshot_ms']:10.3f}{c['sim_total_ms']:10.3f}")
     print("\nBehaviour checks:")
     for k in result["checks"]:
-        print(f"  {'ok  ' if k['holds'] else 'FAIL'} {k['name']:34s} {k['value']:.6g} (threshold {k['threshold']:.6g})")
+        mark = {"held": "ok  ", "failed": "FAIL", "not_applicable": "n/a "}[k["status"]]
+        why = f" not applicable: {k['reason']}" if k["status"] == "not_applicable" else ""
+        print(f"  {mark} {k['name']:34s} {k['value']:.6g} (threshold {k['threshold']:.6g}){why}")
 
 
 def plot(result, title, path):

@@ -215,6 +215,12 @@ py::dict condition_dict(const ConditionResult& c) {
   d["sim_total_ms"] = c.sim_total_ms;
   d["settle_frames"] = c.settle_frames;
   d["settle_max_speed"] = c.settle_max_speed;
+  py::dict far;  // SPEC §8.8: share of each class's AUC after release in the far field (None: still)
+  for (int t = 0; t < kTissueCount; ++t) {
+    const double share = far_field_share(c.far_speed_sum, c.total_speed_sum, t);
+    far[tissue_name(t)] = share >= 0 ? py::object(py::float_(share)) : py::object(py::none());
+  }
+  d["far_field_share"] = far;
   d["finite"] = c.finite;
   d["max_boundary_excess"] = c.max_boundary_excess;
   d["max_bone_velocity"] = c.max_bone_velocity;
@@ -263,14 +269,16 @@ py::dict experiment_dict(const ExperimentResult& r, const Model& m) {
     py::dict k;
     k["name"] = c.name;
     k["spec"] = c.spec;
-    k["holds"] = c.holds;
+    k["status"] = check_status_name(c.status);  // held | failed | not_applicable
+    k["holds"] = c.holds();                      // true only when held
     k["value"] = c.value;
+    k["reason"] = c.reason;                      // why not applicable (empty otherwise)
     k["threshold"] = c.threshold;
     k["description"] = c.description;
     checks.append(k);
   }
   d["checks"] = checks;
-  d["all_hold"] = r.all_hold();
+  d["all_hold"] = r.all_hold();  // no check failed
   return d;
 }
 
@@ -551,8 +559,9 @@ Several threads may call one Simulation: the calls run one at a time.)")
 
 Returns a dict: dims, elements, grab_centre, release_frame, recorded_frames, params,
 conditions {"A"|"B"|"C": {initial, peak, auc (per tissue), stage times in ms, settle checks,
-centre_track (frames, 3), frames (numpy columns)}}, checks [{name, spec, holds, value,
-threshold, description}], all_hold. progress(condition, done, total) is called per frame.)");
+centre_track (frames, 3), frames (numpy columns)}}, checks [{name, spec, status
+(held | failed | not_applicable), holds, value, threshold, description, reason}], all_hold (no
+check failed). progress(condition, done, total) is called per frame.)");
   m.def("report_columns", &report_columns, py::arg("reports"), "FrameReports -> numpy columns (as Simulation.run gives).");
 }
 

@@ -2,11 +2,66 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <limits>
 
 namespace hpcm {
 
+const char* check_status_name(CheckStatus s) {
+  switch (s) {
+    case CheckStatus::Held: return "held";
+    case CheckStatus::Failed: return "failed";
+    case CheckStatus::NotApplicable: return "not_applicable";
+  }
+  return "failed";
+}
+
 bool ExperimentResult::all_hold() const {
-  return std::all_of(checks.begin(), checks.end(), [](const Check& c) { return c.holds; });
+  return std::none_of(checks.begin(), checks.end(), [](const Check& c) { return c.failed(); });
+}
+
+int ExperimentResult::count(CheckStatus s) const {
+  return static_cast<int>(std::count_if(checks.begin(), checks.end(), [s](const Check& c) { return c.status == s; }));
+}
+
+std::string motion_checks_not_applicable(Int3 dims) {
+  int d[3] = {dims.x, dims.y, dims.z};
+  std::sort(d, d + 3);
+  if (d[1] >= kMotionLatticeMin) return {};  // the two longest axes: d[1] and d[2]
+  return "lattice " + std::to_string(dims.x) + "×" + std::to_string(dims.y) + "×" + std::to_string(dims.z) +
+         " below " + std::to_string(kMotionLatticeMin) + " along its two longest axes";
+}
+
+FarFieldSplit::FarFieldSplit(const Model& model, Index centre, float distance)
+    : code_(static_cast<std::size_t>(model.size()), -1), distance_(distance) {
+  const Vec3 c = model.rest(centre);
+  for (Index i = 0; i < model.size(); ++i) {
+    if (!model.counted(i)) continue;  // SPEC §3: the body's elements only
+    const bool far = norm(model.rest(i) - c) > distance;
+    code_[static_cast<std::size_t>(i)] = static_cast<std::int8_t>(model.tissue[i] + (far ? kTissueCount : 0));
+  }
+}
+
+void FarFieldSplit::add_frame(const std::vector<Vec3>& before, const std::vector<Vec3>& after) {
+  if (before.size() != code_.size() || after.size() != code_.size())
+    throw Error("FarFieldSplit: positions for " + std::to_string(before.size()) + " and " + std::to_string(after.size()) +
+                " elements, the model has " + std::to_string(code_.size()));
+  TissueSums far{}, total{};
+  for (std::size_t i = 0; i < code_.size(); ++i) {
+    const int k = code_[i];
+    if (k < 0) continue;
+    const double speed = norm(after[i] - before[i]);
+    total[k % kTissueCount] += speed;
+    if (k >= kTissueCount) far[k - kTissueCount] += speed;
+  }
+  for (int t = 0; t < kTissueCount; ++t) {
+    far_[t] += far[t];
+    total_[t] += total[t];
+  }
+}
+
+double far_field_share(const TissueSums& far_sum, const TissueSums& total_sum, int t) {
+  return total_sum[t] > 0 ? far_sum[t] / total_sum[t] : -1.0;
 }
 
 void table2(const std::vector<FrameReport>& frames, int release, int count, PerTissue& initial, PerTissue& peak,
@@ -43,7 +98,7 @@ float boundary_excess(const State& s, Int3 d, float margin) {
 }
 
 ConditionResult run_condition(const Model& model, Params params, DampingMode mode, const ExperimentOptions& opt,
-                              Index centre, int cond_index) {
+                              Index centre, int cond_index, int release, int recorded, float far_distance) {
   ConditionResult r;
   r.mode = mode;
   r.label = std::string(1, static_cast<char>('A' + cond_index));
@@ -62,6 +117,11 @@ ConditionResult run_condition(const Model& model, Params params, DampingMode mod
     r.max_folded_cells = std::max(r.max_folded_cells, f.folded_cells);
   };
   LimitedPullTracker limited(opt.scenario);
+  // SPEC §8.8: speeds of the recorded frames split by distance from the grab centre, from the
+  // frame-end positions (the frame before the release is the first one kept).
+  FarFieldSplit far_field(model, centre, far_distance);
+  std::vector<Vec3> previous;
+  if (release == 0) previous = State::rest(model).pos;
   while (!player.done()) {
     const FrameReport f = player.step(so);
     if (auto ended = limited.after_frame(f, sim.tool_offset(), sim.requested_offset()))
@@ -73,10 +133,15 @@ ConditionResult run_condition(const Model& model, Params params, DampingMode mod
     if (f.tool_limited && r.first_limited_frame < 0) r.first_limited_frame = f.frame;
     r.centre_track.push_back(sim.position(centre));
     const State& s = sim.state();
+    const int frame = static_cast<int>(r.frames.size()) - 1;
+    if (frame >= release && frame < release + recorded) far_field.add_frame(previous, s.pos);
+    if (frame >= release - 1 && frame < release + recorded - 1) previous = s.pos;
     if (r.finite && !finite_state(s)) r.finite = false;
     r.max_boundary_excess = std::max(r.max_boundary_excess, boundary_excess(s, model.dims, params.dynamics.margin));
     if (opt.progress) opt.progress(cond_index, ++done, total);
   }
+  r.far_speed_sum = far_field.far_sum();
+  r.total_speed_sum = far_field.total_sum();
   if (auto ended = limited.finish()) r.limited_pulls.push_back(std::move(*ended));
   double cm = 0, in = 0, sn = 0, st = 0;
   for (const auto& f : r.frames) {
@@ -110,7 +175,32 @@ ConditionResult run_condition(const Model& model, Params params, DampingMode mod
 }
 
 Check make_check(std::string name, std::string spec, bool holds, double value, double threshold, std::string what) {
-  return Check{std::move(name), std::move(spec), holds, value, threshold, std::move(what)};
+  return Check{std::move(name), std::move(spec), holds ? CheckStatus::Held : CheckStatus::Failed, value, threshold,
+               std::move(what), {}};
+}
+
+void not_applicable(Check& c, std::string reason) {
+  c.status = CheckStatus::NotApplicable;
+  c.reason = std::move(reason);
+}
+
+/// SPEC §8 item of a motion check: required only on lattices large enough to swing (8.1-8.4,
+/// 8.8). C_bone_velocity_zero is a property of the velocity layer, not of the motion: held everywhere.
+bool motion_check(const Check& c) {
+  if (c.name == "C_bone_velocity_zero") return false;
+  return c.spec == "8.1" || c.spec == "8.2" || c.spec == "8.3" || c.spec == "8.4" || c.spec == "8.8";
+}
+
+std::string figure(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.3g", v);
+  return buf;
+}
+
+/// a / b as a check figure: +inf when b is 0 and a is not (written as JSON null), 0 when both are.
+double ratio(double a, double b) {
+  if (b > 0) return a / b;
+  return a > 0 ? std::numeric_limits<double>::infinity() : 0.0;
 }
 
 }  // namespace
@@ -138,7 +228,8 @@ ExperimentResult run_experiment(const Model& model, const Params& params, const 
 
   const DampingMode modes[3] = {DampingMode::None, DampingMode::Simple, DampingMode::Viscoelastic};
   for (int c = 0; c < 3; ++c) {
-    res.conditions.push_back(run_condition(model, params, modes[c], opt, res.grab_centre, c));
+    res.conditions.push_back(run_condition(model, params, modes[c], opt, res.grab_centre, c, res.release_frame,
+                                           res.recorded_frames, res.far_field_distance));
     auto& cr = res.conditions.back();
     table2(cr.frames, res.release_frame, res.recorded_frames, cr.initial, cr.peak, cr.auc);
   }
@@ -235,6 +326,31 @@ ExperimentResult run_experiment(const Model& model, const Params& params, const 
       res.checks.push_back(make_check("C_bone_velocity_zero", "8.4", c.max_bone_velocity == 0.0f, c.max_bone_velocity, 0.0,
                                       "largest |V| over bone elements under C (bone inverse mass is 0, so it must be exactly 0)"));
   }
+  // 8.8: local response under C (the paper's Table 2 and Figure 3): skin&fat moves at least
+  // 10 times more than muscle&organ, the far field carries little of each class's AUC, and A's
+  // skin&fat hardly moves after release compared with C's.
+  {
+    const auto &a = res.conditions[kA], &c = res.conditions[kC];
+    const double peak_ratio = ratio(c.peak[kSkin], c.peak[kMuscle]), auc_ratio = ratio(c.auc[kSkin], c.auc[kMuscle]);
+    res.checks.push_back(make_check("C_skin_muscle_peak_ratio", "8.8", peak_ratio >= 10, peak_ratio, 10,
+                                    "skin_fat Peak / muscle_organ Peak under C (body elements; paper: 26)"));
+    res.checks.push_back(make_check("C_skin_muscle_auc_ratio", "8.8", auc_ratio >= 10, auc_ratio, 10,
+                                    "skin_fat AUC / muscle_organ AUC under C (body elements; paper: 19)"));
+    const std::string dist = figure(res.far_field_distance);
+    for (int t : {kSkin, kMuscle, kBone}) {
+      const double share = far_field_share(c.far_speed_sum, c.total_speed_sum, t);
+      Check k = make_check(std::string("C_far_field_share_") + tissue_name(t), "8.8", share >= 0 && share < 0.10,
+                           std::max(share, 0.0), 0.10,
+                           std::string("share of the ") + tissue_name(t) + " AUC under C after release carried by body elements "
+                           "farther than " + dist + " lattice units (rest position) from the grab centre");
+      // A class that does not move has no share; bone (inverse mass 0) may be still.
+      if (share < 0) not_applicable(k, std::string(tissue_name(t)) + " did not move after release (AUC 0)");
+      res.checks.push_back(std::move(k));
+    }
+    const double a_over_c = ratio(a.auc[kSkin], c.auc[kSkin]);
+    res.checks.push_back(make_check("A_skin_auc_below_C", "8.8", c.auc[kSkin] > 0 && a_over_c < 0.10, a_over_c, 0.10,
+                                    "skin_fat AUC after release under A / under C (paper: A stays near 0)"));
+  }
   // 8.5: finite, within the boundary margin, still after the settle frames.
   for (const auto& cr : res.conditions) {
     res.checks.push_back(make_check(cr.label + "_finite", "8.5", cr.finite, cr.finite ? 0 : 1, 0,
@@ -253,6 +369,20 @@ ExperimentResult run_experiment(const Model& model, const Params& params, const 
                                     "largest link violation after the ChainMail stage over every frame (lattice units)"));
     res.checks.push_back(make_check(cr.label + "_fold_free", "8.7", cr.min_cell_jacobian > 0.0f, cr.min_cell_jacobian, 0.0,
                                     "smallest cell corner Jacobian determinant at the end of any frame; must be > 0"));
+  }
+  // SPEC §8: the motion checks are held only where the lattice leaves room to swing, and the
+  // residual oscillation (8.2) only where the tool achieved a pull of at least 0.5.
+  const std::string small_lattice = motion_checks_not_applicable(model.dims);
+  for (Check& k : res.checks) {
+    if (!motion_check(k)) continue;
+    if (!small_lattice.empty()) {
+      not_applicable(k, small_lattice);  // the first reason, also for a class that did not move
+    } else if (k.spec == "8.2") {
+      const ConditionResult& cr = res.conditions[k.name[0] == 'B' ? kB : kC];
+      if (cr.max_achieved_offset < kMinSwingPull)
+        not_applicable(k, "achieved pull " + figure(cr.max_achieved_offset) + " lattice units, below " +
+                              figure(kMinSwingPull));
+    }
   }
   return res;
 }

@@ -30,10 +30,11 @@ void PrintTo(const CtCase& c, std::ostream* os) { *os << c.name; }
 struct KnownFailure {
   const char* ct;  ///< CtCase::name
   const char* check;
+  double lo;       ///< the check's figure must stay >= lo (a worsening fails)
   const char* why;
 };
 constexpr KnownFailure kKnownFailures[] = {
-    {"abdomen_f2", "B_velocity_sign_changes",
+    {"abdomen_f2", "B_velocity_sign_changes", 1.0,
      "one real turn (0.17 cells past rest), then a two-frame alternation of about 0.02 cells, below the counted "
      "swing (1 % of the 2.78-cell pull); all checks hold at full resolution"},
 };
@@ -64,20 +65,31 @@ TEST_P(RealCtExperiment, ChecksHoldWithDefaults) {
   std::printf("%s: %dx%dx%d, %.1f s\n", c.name, m.dims.x, m.dims.y, m.dims.z, secs);
   ASSERT_EQ(r.conditions.size(), 3u);
   int reported = 0;
+  // SPEC §8: the motion checks are held on lattices >= 64 along the two longest axes (all of
+  // these), 8.2 where the achieved pull is >= 0.5; a not-applicable check must say why.
   for (const Check& k : r.checks) {
-    std::printf("  %-26s %s %-5s value %-12g threshold %g\n", k.name.c_str(), k.spec.c_str(), k.holds ? "holds" : "FAILS",
-                k.value, k.threshold);
+    std::printf("  %-32s %s %-14s value %-12g threshold %g %s\n", k.name.c_str(), k.spec.c_str(),
+                check_status_name(k.status), k.value, k.threshold, k.reason.c_str());
     ++reported;
-    if (const KnownFailure* f = known_failure(c.name, k.name)) {
-      std::printf("    known failure: %s\n", f->why);
-      EXPECT_FALSE(k.holds) << k.name << " now holds on " << c.name
-                            << ": remove it from kKnownFailures and from docs/tuning.md";
+    if (k.status == CheckStatus::NotApplicable) {
+      EXPECT_FALSE(k.reason.empty()) << k.name;
+      if (k.spec == "8.2")
+        EXPECT_LT(r.conditions[k.name[0] == 'B' ? 1 : 2].max_achieved_offset, kMinSwingPull) << c.name << " " << k.name;
+      else
+        EXPECT_EQ(k.name, "C_far_field_share_bone") << c.name << ": " << k.reason;
       continue;
     }
-    EXPECT_TRUE(k.holds) << c.name << " " << k.name << ": value " << k.value << ", threshold " << k.threshold << " ("
-                         << k.description << ")";
+    if (const KnownFailure* f = known_failure(c.name, k.name)) {
+      std::printf("    known failure: %s\n", f->why);
+      EXPECT_FALSE(k.holds()) << k.name << " now holds on " << c.name
+                              << ": remove it from kKnownFailures and from docs/tuning.md";
+      EXPECT_GE(k.value, f->lo) << k.name << " on " << c.name << " got worse";
+      continue;
+    }
+    EXPECT_TRUE(k.holds()) << c.name << " " << k.name << ": value " << k.value << ", threshold " << k.threshold << " ("
+                           << k.description << ")";
   }
-  EXPECT_EQ(reported, 27) << "the paper protocol reports 27 checks";
+  EXPECT_EQ(reported, 33) << "the paper protocol reports 33 checks (27 of SPEC §8.1-8.7, 6 of §8.8)";
 }
 
 INSTANTIATE_TEST_SUITE_P(SharedData, RealCtExperiment,

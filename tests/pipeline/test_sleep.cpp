@@ -63,11 +63,9 @@ TEST(Sleep, WithinOneHundredthOfTheAwakeReferenceAndComesToRest) {
   }
 }
 
-// SPEC 8 (every check the experiment reports) also holds with every brick awake, except the
-// tissue hierarchy under C, which on this 48x48x32 phantom fails with sleeping as without since
-// the statistics count the body only (SPEC §3; the phantom variants test and docs/tuning.md,
-// "The body, not the table"): it must keep failing by no more than the bound (measured: Peak
-// -0.00159, AUC -0.0391), so a worsening, or a change that makes it hold, shows.
+// SPEC 8 (every check the experiment reports) also holds with every brick awake. The lattice,
+// 48x48x32, is below the 64 along the two longest axes that the motion checks are held on: they
+// are reported not applicable (with the lattice as the reason), never failed.
 TEST(Sleep, ChecksHoldWithEveryBrickAwake) {
   Params p;
   p.solver.sleep = false;
@@ -75,14 +73,14 @@ TEST(Sleep, ChecksHoldWithEveryBrickAwake) {
   ExperimentOptions opt;
   opt.settle_frames = 2000;
   const ExperimentResult r = run_experiment(m, p, opt);
-  const std::map<std::string, double> known_failures = {{"C_hierarchy_peak", -0.002}, {"C_hierarchy_auc", -0.05}};
+  EXPECT_EQ(r.checks.size(), 33u) << "the paper protocol reports 33 checks";
   for (const Check& c : r.checks) {
-    const auto known = known_failures.find(c.name);
-    if (known == known_failures.end()) {
-      EXPECT_TRUE(c.holds) << c.name << ": value " << c.value << ", threshold " << c.threshold;
-    } else {
-      EXPECT_FALSE(c.holds) << c.name << " holds now: remove it from the known failures here and in docs/tuning.md";
-      EXPECT_GE(c.value, known->second) << c.name << " worsened";
+    if (c.status == CheckStatus::NotApplicable) {
+      EXPECT_EQ(c.reason, "lattice 48×48×32 below 64 along its two longest axes") << c.name;
+      continue;
     }
+    EXPECT_TRUE(c.holds()) << c.name << ": " << check_status_name(c.status) << ", value " << c.value << ", threshold "
+                           << c.threshold;
   }
+  EXPECT_GE(r.count(CheckStatus::Held), 15) << "the every-lattice checks (8.5, 8.7) are required";
 }

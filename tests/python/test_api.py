@@ -185,7 +185,11 @@ def test_experiment_summary_and_scenario_player_agree(phantom):
     assert c["mode"] == "viscoelastic" and set(c["peak"]) == set(hpcm.TISSUES)
     assert c["frames"]["mean_speed"].shape == (scenario.frames, 4)
     assert c["centre_track"].shape == (scenario.frames, 3)
-    assert all({"name", "spec", "holds", "value", "threshold", "description"} <= set(k) for k in result["checks"])
+    assert all({"name", "spec", "status", "holds", "value", "threshold", "description", "reason"} <= set(k)
+               for k in result["checks"])
+    assert all(k["status"] in ("held", "failed", "not_applicable") for k in result["checks"])
+    assert all(k["holds"] == (k["status"] == "held") for k in result["checks"])
+    assert result["all_hold"] == all(k["status"] != "failed" for k in result["checks"])
     assert isinstance(result["all_hold"], bool)
     # The same protocol played frame by frame through the API gives the same grab-centre track.
     sim = hpcm.Simulation(phantom, params)
