@@ -1,11 +1,11 @@
 // The paper-protocol checks on phantom anatomy the defaults were not tuned on (thin tissue over
 // bone, thick fat, gas pockets, a CT table, thick slices), with the default Params throughout.
-// The checks that hold on every lattice size are asserted on every variant: links in their
-// boxes after every ChainMail stage, fold-free, finite, within the margin, settled after the
-// idle frames, bone velocity 0, and condition A never moving the grab centre past or away from
-// rest after release (over-relaxation is not monotone, so this is measured here frame by frame).
-// The overshoot / damping / hierarchy checks need lattices >= 48 per axis (docs/tuning.md);
-// they are asserted where the lattice is that large.
+// Every check is held, failed or not applicable (SPEC §8): the checks that hold on every lattice
+// (8.5, 8.7, and bone velocity 0) are required on every variant; the motion checks (8.1-8.4,
+// 8.8) are required from 64 elements along the two longest axes and reported not applicable,
+// with that reason, below; 8.2 is not applicable where the achieved pull is below 0.5. Condition
+// A never moving the grab centre past or away from rest after release is also measured here
+// frame by frame (over-relaxation is not monotone).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -27,10 +27,11 @@ struct VariantCase {
   Int3 dims;
 };
 
-// Checks measured to fail with the defaults, and why (docs/tuning.md, "Anatomy the defaults
-// were not tuned on"). They are reported, not asserted to hold; the test fails if one starts to
-// hold, so this list cannot go stale, and if its figure leaves [lo, hi] (about a quarter beyond
-// the measured figure), so a worsening fails too.
+// Required checks measured to fail with the defaults, and why (docs/tuning.md, "Anatomy the
+// defaults were not tuned on"). They are reported, not asserted to hold; the test fails if one
+// starts to hold, so this list cannot go stale, and if its figure leaves [lo, hi] (about a
+// quarter beyond the measured figure), so a worsening fails too. Lattices below 64 along their
+// two longest axes report the motion checks not applicable: none of those is listed.
 struct KnownFailure {
   PhantomVariant variant;
   int nx;  ///< lattice size (x) it was measured on
@@ -38,33 +39,38 @@ struct KnownFailure {
   double lo, hi;  ///< the check's value must stay within these bounds
   const char* why;
 };
-// SPEC §3: the per-class means count the body only (the phantom's own outline). The outside air
-// in front of the pull, which moved with the skin and was counted as skin&fat (its noise
-// straddles -1000 HU), and the table's still foam no longer count; skin&fat is then the skin,
-// the subcutaneous and the still visceral fat, while on these small lattices muscle&organ is
-// largely the two-element abdominal wall that moves with the skin.
+// SPEC §3: the per-class means count the body only (the phantom's own outline): skin&fat is the
+// skin, the subcutaneous and the still visceral fat, while on these small lattices muscle&organ
+// is largely the two-element abdominal wall that moves with the skin.
 constexpr const char* kBodyOnly =
     "counting the body only (SPEC §3), skin&fat's mean (skin, subcutaneous and still visceral fat) falls below "
     "muscle&organ's (the two-element wall moving with the skin); the pushed outside air no longer counts";
 constexpr KnownFailure kKnownFailures[] = {
-    {PhantomVariant::ThinTissue, 48, "A_no_overshoot", 0.0, 0.005,
-     "the tool moves only 0.02 cells; in the first frame after release over-relaxation carries the grab centre "
-     "3.9e-3 cells past rest (19 % of the pull), and four frames later it moves away from rest by 4.8e-6"},
     {PhantomVariant::ThinTissue, 64, "A_no_overshoot", 0.0, 0.0025,
      "the tool moves only 0.02 cells; in the first frame after release over-relaxation carries the grab centre "
      "1.8e-3 cells past rest (8.5 % of the pull)"},
-    {PhantomVariant::AirPockets, 48, "C_hierarchy_peak", -0.01, 0.0,
-     "muscle&organ's Peak exceeds skin&fat's (-0.0015): the wall over the gas pocket moves with the skin"},
-    {PhantomVariant::AirPockets, 48, "C_hierarchy_auc", -0.06, 0.0, kBodyOnly},        // -0.0416
-    {PhantomVariant::Table, 48, "C_hierarchy_peak", -0.005, 0.0, kBodyOnly},           // -0.0036
-    {PhantomVariant::Table, 48, "C_hierarchy_auc", -0.12, 0.0, kBodyOnly},             // -0.0927
-    {PhantomVariant::Anisotropic, 48, "C_hierarchy_peak", -0.0015, 0.0, kBodyOnly},    // -0.00097
-    {PhantomVariant::Anisotropic, 48, "C_hierarchy_auc", -0.03, 0.0, kBodyOnly},       // -0.0227
     {PhantomVariant::Table, 64, "C_hierarchy_auc", -0.105, 0.0, kBodyOnly},            // -0.0818
     {PhantomVariant::Standard, 64, "C_hierarchy_auc", -0.035, 0.0, kBodyOnly},         // -0.0275
     {PhantomVariant::Standard, 64, "A_no_overshoot", 0.0, 1.4e-4,
      "four frames after release over-relaxation moves the grab centre away from rest by 1.08e-4 cells (measured "
      "before the body was counted alone too: it does not depend on the statistics)"},
+    {PhantomVariant::Standard, 64, "C_hierarchy_peak", -0.0005, 0.0, kBodyOnly},       // -0.000252
+    // SPEC §8.8 is the abdomen CT's local response. On the 64 phantoms muscle&organ is mostly the
+    // thin abdominal wall that moves with the skin, so the skin / muscle ratios are near 1 (thin
+    // tissue: ~6-8), and A's skin&fat keeps moving after release for a large part of C's AUC
+    // (measured; the cause is not analysed yet). Figures as measured, at settle 1 (they do not
+    // depend on the settle frames).
+    {PhantomVariant::Standard, 64, "C_skin_muscle_peak_ratio", 0.75, 10.0, kBodyOnly},  // 0.998
+    {PhantomVariant::Standard, 64, "C_skin_muscle_auc_ratio", 0.74, 10.0, kBodyOnly},   // 0.985
+    {PhantomVariant::Standard, 64, "A_skin_auc_below_C", 0.0, 0.73, "A's skin&fat AUC after release is 59 % of C's"},
+    {PhantomVariant::Table, 64, "C_skin_muscle_peak_ratio", 0.76, 10.0, kBodyOnly},     // 1.009
+    {PhantomVariant::Table, 64, "C_skin_muscle_auc_ratio", 0.72, 10.0, kBodyOnly},      // 0.954
+    {PhantomVariant::Table, 64, "A_skin_auc_below_C", 0.0, 0.76, "A's skin&fat AUC after release is 61 % of C's"},
+    {PhantomVariant::ThinTissue, 64, "C_skin_muscle_peak_ratio", 5.9, 10.0,
+     "the tool moves only 0.02 cells; skin&fat's Peak is 7.9 times muscle&organ's"},
+    {PhantomVariant::ThinTissue, 64, "C_skin_muscle_auc_ratio", 4.3, 10.0,
+     "the tool moves only 0.02 cells; skin&fat's AUC is 5.7 times muscle&organ's"},
+    {PhantomVariant::ThinTissue, 64, "A_skin_auc_below_C", 0.0, 0.32, "A's skin&fat AUC after release is 25 % of C's"},
 };
 const KnownFailure* known_failure(PhantomVariant v, int nx, const std::string& check) {
   for (const auto& k : kKnownFailures)
@@ -72,8 +78,9 @@ const KnownFailure* known_failure(PhantomVariant v, int nx, const std::string& c
   return nullptr;
 }
 
-bool needs_large_lattice(const std::string& spec) {
-  return spec == "8.1" || spec == "8.2" || spec == "8.3" || spec == "8.4";
+bool motion_clause(const Check& c) {
+  return c.name != "C_bone_velocity_zero" &&
+         (c.spec == "8.1" || c.spec == "8.2" || c.spec == "8.3" || c.spec == "8.4" || c.spec == "8.8");
 }
 
 // Test names in CTest read as the variant, not as the parameter's bytes.
@@ -97,28 +104,40 @@ TEST_P(PhantomVariantExperiment, ChecksHoldWithDefaults) {
   const auto t0 = std::chrono::steady_clock::now();
   const ExperimentResult r = run_experiment(m, p, opt);
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  const bool large = vc.dims.x >= 48 && vc.dims.y >= 48 && vc.dims.z >= 32;
+  const std::string small_lattice = motion_checks_not_applicable(vc.dims);
   std::printf("%s %dx%dx%d: %.1f s\n", phantom_variant_name(vc.variant), vc.dims.x, vc.dims.y, vc.dims.z, secs);
   ASSERT_EQ(r.conditions.size(), 3u);
 
   std::set<std::string> asserted;
+  EXPECT_EQ(r.checks.size(), 33u) << "the paper protocol reports 33 checks";
   for (const Check& c : r.checks) {
-    const bool assert_it = large || !needs_large_lattice(c.spec) || c.name == "A_no_overshoot" ||
-                           c.name == "C_bone_velocity_zero";
-    std::printf("  %-26s %s %-5s value %-12g threshold %g%s\n", c.name.c_str(), c.spec.c_str(), c.holds ? "holds" : "FAILS",
-                c.value, c.threshold, assert_it ? "" : " (not asserted below 48)");
-    if (!assert_it) continue;
+    std::printf("  %-32s %s %-14s value %-12g threshold %g %s\n", c.name.c_str(), c.spec.c_str(),
+                check_status_name(c.status), c.value, c.threshold, c.reason.c_str());
+    if (c.status == CheckStatus::NotApplicable) {
+      // Only for the reasons SPEC §8 gives.
+      EXPECT_TRUE(motion_clause(c)) << c.name << " is required on every lattice";
+      if (!small_lattice.empty()) {
+        EXPECT_EQ(c.reason, small_lattice) << c.name;
+      } else if (c.spec == "8.2") {
+        EXPECT_LT(r.conditions[c.name[0] == 'B' ? 1 : 2].max_achieved_offset, kMinSwingPull) << c.name;
+      } else {
+        EXPECT_EQ(c.name, "C_far_field_share_bone") << c.name << ": " << c.reason;
+      }
+      EXPECT_TRUE(known_failure(vc.variant, vc.dims.x, c.name) == nullptr) << c.name << " is listed as a known failure";
+      continue;
+    }
+    EXPECT_FALSE(motion_clause(c) && !small_lattice.empty()) << c.name << " must be not applicable on " << small_lattice;
     asserted.insert(c.name);
     if (const KnownFailure* k = known_failure(vc.variant, vc.dims.x, c.name)) {
       std::printf("    known failure: %s\n", k->why);
-      EXPECT_FALSE(c.holds) << c.name << " now holds on " << phantom_variant_name(vc.variant)
-                            << ": remove it from kKnownFailures and from docs/tuning.md";
+      EXPECT_FALSE(c.holds()) << c.name << " now holds on " << phantom_variant_name(vc.variant)
+                              << ": remove it from kKnownFailures and from docs/tuning.md";
       EXPECT_GE(c.value, k->lo) << c.name << " on " << phantom_variant_name(vc.variant) << " got worse";
       EXPECT_LE(c.value, k->hi) << c.name << " on " << phantom_variant_name(vc.variant) << " got worse";
       continue;
     }
-    EXPECT_TRUE(c.holds) << phantom_variant_name(vc.variant) << " " << c.name << ": value " << c.value << ", threshold "
-                         << c.threshold << " (" << c.description << ")";
+    EXPECT_TRUE(c.holds()) << phantom_variant_name(vc.variant) << " " << c.name << ": value " << c.value
+                           << ", threshold " << c.threshold << " (" << c.description << ")";
   }
   // The every-lattice checks exist for A, B and C (a renamed check must not pass silently).
   for (const char* cond : {"A", "B", "C"})
@@ -145,7 +164,7 @@ TEST_P(PhantomVariantExperiment, ChecksHoldWithDefaults) {
   // anchored plate), and as far as the solver reports for the tool.
   EXPECT_GT(dist_at_release, 0.01f) << "the pull did not move the grab centre";
   EXPECT_NEAR(dist_at_release, a.max_achieved_offset, 1e-3f);
-  // The reported check (asserted above, unless a known failure) measures the same thing.
+  // The reported check (asserted above on 64 lattices, unless a known failure) measures the same thing.
   const auto a_check = std::find_if(r.checks.begin(), r.checks.end(), [](const Check& c) { return c.name == "A_no_overshoot"; });
   ASSERT_NE(a_check, r.checks.end());
   EXPECT_NEAR(std::max({0.0f, worst_increase, worst_past_rest}), a_check->value, 1e-6);
