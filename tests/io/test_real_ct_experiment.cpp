@@ -1,9 +1,9 @@
 // The paper-protocol checks on the real CTs beside the checkout (../shared/data), with the
 // default Params, as `hpcm experiment --input PATH --downsample F` runs them: the abdomen CT at
-// full and half resolution and the DICOM series at half resolution. Every check is asserted
-// except the measured failures listed below with their cause (docs/tuning.md, "Real CT at half
-// resolution"); a listed failure that starts to hold fails the test, so the list cannot go
-// stale. Skipped when the data is absent.
+// full and half resolution and the DICOM series at half resolution. Every check is asserted to
+// hold, or to be not applicable where SPEC §8 says so, except the measured failures listed below
+// with their cause and a bound on the figure; a listed failure that starts to hold fails the
+// test, so the list cannot go stale. Skipped when the data is absent.
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -30,13 +30,28 @@ void PrintTo(const CtCase& c, std::ostream* os) { *os << c.name; }
 struct KnownFailure {
   const char* ct;  ///< CtCase::name
   const char* check;
-  double lo;       ///< the check's figure must stay >= lo (a worsening fails)
+  double lo, hi;   ///< the check's figure must stay within [lo, hi] (a worsening fails)
   const char* why;
 };
+// abdomen_f2 (61×50×56) is below 64 along its two longest axes: its motion checks are not
+// applicable (SPEC §8), so its former failure (B turning once) is no longer listed.
+// SPEC §8.8 (local response) measured with the relaxation as it is (issue #30 changes it): the
+// pull spreads far from the grab through the tissue, so muscle&organ moves nearly as much as
+// skin&fat, a large part of each class's AUC is farther than 40 lattice units, and A keeps
+// moving after release. Bounds about a quarter beyond the measured figure (in the comments).
+constexpr const char* kSpread =
+    "the relaxation spreads the pull far from the grab (SPEC §8.8 not met yet; issue #30)";
 constexpr KnownFailure kKnownFailures[] = {
-    {"abdomen_f2", "B_velocity_sign_changes", 1.0,
-     "one real turn (0.17 cells past rest), then a two-frame alternation of about 0.02 cells, below the counted "
-     "swing (1 % of the 2.78-cell pull); all checks hold at full resolution"},
+    {"abdomen_f1", "C_skin_muscle_peak_ratio", 1.55, 10.0, kSpread},      // 2.095
+    {"abdomen_f1", "C_skin_muscle_auc_ratio", 1.2, 10.0, kSpread},        // 1.622
+    {"abdomen_f1", "C_far_field_share_skin_fat", 0.1, 0.5, kSpread},      // 0.404
+    {"abdomen_f1", "C_far_field_share_muscle_organ", 0.1, 0.98, kSpread}, // 0.782
+    {"abdomen_f1", "A_skin_auc_below_C", 0.1, 0.47, kSpread},             // 0.376
+    {"dicom_f2", "C_skin_muscle_peak_ratio", 4.0, 10.0, kSpread},         // 5.305
+    {"dicom_f2", "C_skin_muscle_auc_ratio", 1.8, 10.0, kSpread},          // 2.390
+    {"dicom_f2", "C_far_field_share_skin_fat", 0.1, 0.16, kSpread},       // 0.127
+    {"dicom_f2", "C_far_field_share_muscle_organ", 0.1, 0.41, kSpread},   // 0.331
+    {"dicom_f2", "A_skin_auc_below_C", 0.1, 0.5, kSpread},                // 0.402
 };
 const KnownFailure* known_failure(const std::string& ct, const std::string& check) {
   for (const auto& k : kKnownFailures)
@@ -65,15 +80,18 @@ TEST_P(RealCtExperiment, ChecksHoldWithDefaults) {
   std::printf("%s: %dx%dx%d, %.1f s\n", c.name, m.dims.x, m.dims.y, m.dims.z, secs);
   ASSERT_EQ(r.conditions.size(), 3u);
   int reported = 0;
-  // SPEC §8: the motion checks are held on lattices >= 64 along the two longest axes (all of
-  // these), 8.2 where the achieved pull is >= 0.5; a not-applicable check must say why.
+  // SPEC §8: the motion checks are held on lattices >= 64 along the two longest axes (not
+  // abdomen_f2's 61×50×56), 8.2 where the achieved pull is >= 0.5; a not-applicable check says why.
+  const std::string small_lattice = motion_checks_not_applicable(m.dims);
   for (const Check& k : r.checks) {
     std::printf("  %-32s %s %-14s value %-12g threshold %g %s\n", k.name.c_str(), k.spec.c_str(),
                 check_status_name(k.status), k.value, k.threshold, k.reason.c_str());
     ++reported;
     if (k.status == CheckStatus::NotApplicable) {
       EXPECT_FALSE(k.reason.empty()) << k.name;
-      if (k.spec == "8.2")
+      if (!small_lattice.empty())
+        EXPECT_EQ(k.reason, small_lattice) << c.name << " " << k.name;
+      else if (k.spec == "8.2")
         EXPECT_LT(r.conditions[k.name[0] == 'B' ? 1 : 2].max_achieved_offset, kMinSwingPull) << c.name << " " << k.name;
       else
         EXPECT_EQ(k.name, "C_far_field_share_bone") << c.name << ": " << k.reason;
@@ -84,6 +102,7 @@ TEST_P(RealCtExperiment, ChecksHoldWithDefaults) {
       EXPECT_FALSE(k.holds()) << k.name << " now holds on " << c.name
                               << ": remove it from kKnownFailures and from docs/tuning.md";
       EXPECT_GE(k.value, f->lo) << k.name << " on " << c.name << " got worse";
+      EXPECT_LE(k.value, f->hi) << k.name << " on " << c.name << " got worse";
       continue;
     }
     EXPECT_TRUE(k.holds()) << c.name << " " << k.name << ": value " << k.value << ", threshold " << k.threshold << " ("
