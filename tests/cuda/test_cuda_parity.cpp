@@ -5,6 +5,10 @@
 // Runs only where a CUDA device is present; skips with the reason otherwise (CI has none).
 #include "parity_suite.hpp"
 
+#include <cmath>
+
+#include "hpcm/experiment.hpp"
+
 using namespace hpcm;
 using namespace hpcm::cudatest;
 
@@ -90,6 +94,34 @@ TEST(CudaParity, PipelineRandomGrabsABC) {
       check_pipeline(cuda(), m, with_mode(p, mode), sc, 200,
                      "random lattice " + std::to_string(seed) + ", random grabs, " + damping_mode_name(mode));
   }
+}
+
+// SPEC §8.8 from both backends: the far-field split is computed on the host from the frame-end
+// positions each backend gives, so the per-class speed sums (near and far) and every check's
+// status agree (figures within the parity tolerance).
+TEST(CudaParity, ExperimentChecksAndFarFieldShares) {
+  REQUIRE_CUDA();
+  const Params p;
+  const Model m = phantom_model({96, 96, 16}, p);
+  ExperimentOptions opt;
+  opt.scenario = Scenario::paper_protocol(6.0f, 20, 10, 60);
+  opt.settle_frames = 50;
+  const ExperimentResult cpu = run_experiment(m, p, opt);
+  opt.backend = BackendKind::Cuda;
+  const ExperimentResult dev = run_experiment(m, p, opt);
+  ASSERT_EQ(cpu.checks.size(), dev.checks.size());
+  for (std::size_t k = 0; k < cpu.checks.size(); ++k) {
+    const Check &a = cpu.checks[k], &b = dev.checks[k];
+    EXPECT_EQ(a.name, b.name);
+    EXPECT_NEAR(a.value, b.value, 1e-3 + 1e-3 * std::abs(a.value)) << a.name;
+    if (a.spec == "8.8") EXPECT_EQ(a.status, b.status) << a.name;
+  }
+  for (int c = 0; c < 3; ++c)
+    for (int t = 0; t < kTissueCount; ++t) {
+      const double tol = 1e-6 + 1e-3 * cpu.conditions[c].total_speed_sum[t];
+      EXPECT_NEAR(cpu.conditions[c].total_speed_sum[t], dev.conditions[c].total_speed_sum[t], tol) << c << " " << t;
+      EXPECT_NEAR(cpu.conditions[c].far_speed_sum[t], dev.conditions[c].far_speed_sum[t], tol) << c << " " << t;
+    }
 }
 
 }  // namespace
