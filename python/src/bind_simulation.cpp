@@ -559,7 +559,8 @@ Several threads may call one Simulation: the calls run one at a time.)")
 
 Returns a dict: dims, elements, grab_centre, release_frame, recorded_frames, params,
 conditions {"A"|"B"|"C": {initial, peak, auc (per tissue), stage times in ms, settle checks,
-centre_track (frames, 3), frames (numpy columns)}}, checks [{name, spec, status
+far_field_share (per tissue, SPEC 8.8; None: still), centre_track (frames, 3), frames (numpy
+columns)}}, checks [{name, spec, status
 (held | failed | not_applicable), holds, value, threshold, description, reason}], all_hold (no
 check failed). progress(condition, done, total) is called per frame.)");
   m.def("report_columns", &report_columns, py::arg("reports"), "FrameReports -> numpy columns (as Simulation.run gives).");

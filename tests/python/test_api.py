@@ -190,6 +190,9 @@ def test_experiment_summary_and_scenario_player_agree(phantom):
     assert all(k["status"] in ("held", "failed", "not_applicable") for k in result["checks"])
     assert all(k["holds"] == (k["status"] == "held") for k in result["checks"])
     assert result["all_hold"] == all(k["status"] != "failed" for k in result["checks"])
+    shares = c["far_field_share"]
+    assert set(shares) == set(hpcm.TISSUES)
+    assert all(v is None or 0.0 <= v <= 1.0 for v in shares.values())
     assert isinstance(result["all_hold"], bool)
     # The same protocol played frame by frame through the API gives the same grab-centre track.
     sim = hpcm.Simulation(phantom, params)
