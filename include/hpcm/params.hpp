@@ -21,7 +21,7 @@ struct SolverParams {
   float grab_radius = 1.5f;        ///< (0, 64] lattice units
   int brick_size = 8;              ///< 4, 8 or 16 (CPU bricks for sparse work)
   int relax_sweeps = 8;            ///< K, [0, 256]
-  float relax_threshold = 1e-4f;   ///< [0, 1) lattice units: smaller corrections are skipped
+  float relax_threshold = 0.03f;   ///< [0, 1) lattice units: smaller corrections are skipped (decides the reach, SPEC §8.8)
   float relax_omega = 1.85f;       ///< over-relaxation of each step, [1, 1.95] (1 = Gauss-Seidel)
   AnchorMode anchors = AnchorMode::Bone;
   int max_propagation_sweeps = 100000;  ///< safety cap, [1, 10^7]
@@ -38,6 +38,9 @@ struct SolverParams {
 inline constexpr float kMinSettlingB0 = 0.005f;        ///< viscoelastic: b0 at least this
 inline constexpr float kMaxSettlingAlpha = 0.99f;      ///< simple: alpha at most this
 inline constexpr float kMinSettlingDeadZone = 3e-4f;   ///< simple and viscoelastic: dead_zone at least this
+/// simple and viscoelastic: dead_zone at least this many times solver.relax_threshold (the
+/// relaxation's skipped corrections act as a relay on the velocity layer; docs/velocity_layer.md).
+inline constexpr float kDeadZonePerThreshold = 2.0f;
 
 struct DynamicsParams {
   DampingMode mode = DampingMode::Viscoelastic;
@@ -46,7 +49,7 @@ struct DynamicsParams {
   PerTissue b1{0.0f, 0.2f, 0.2f, 0.2f};          ///< viscoelastic displacement term, [0, 1]; air 0
   PerTissue inverse_mass{1.0f, 1.0f, 0.15f, 0.0f};  ///< >= 0, at least one > 0
   float s_min = 0.0f, s_max = 1.0f;          ///< response-scale clamp, 0 <= s_min <= s_max <= 1
-  float dead_zone = 1e-3f;                   ///< [0, 1) lattice units
+  float dead_zone = 0.06f;                   ///< [0, 1) lattice units; at least kDeadZonePerThreshold * relax_threshold
   float v_max = 0.5f;                        ///< (0, 10] lattice units per frame
   /// [0, 0.01] lattice units per frame: a velocity below it is set to 0 (the element comes to
   /// rest and its brick can sleep); ignored when solver.sleep is false.

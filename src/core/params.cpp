@@ -167,12 +167,33 @@ void check_damping_settles(const DynamicsParams& d) {
 }
 }  // namespace
 
+namespace {
+// The relaxation skips corrections below solver.relax_threshold, so it moves an element either
+// not at all or by at least the threshold: for the velocity layer that is a relay, an impulse of
+// about the threshold each time an element leaves its dead band, whatever its speed, and it keeps
+// an oscillation of that size going for ever (docs/velocity_layer.md, "Dead zone and threshold").
+// The layer's dead zone must hide those impulses: at least kDeadZonePerThreshold times the
+// threshold (at 1 time the abdomen CT still moved 0.3 cells per frame after 2,000 idle frames).
+void check_dead_zone_covers_threshold(const Params& p) {
+  if (p.dynamics.mode == DampingMode::None) return;
+  const float need = kDeadZonePerThreshold * p.solver.relax_threshold;
+  if (p.dynamics.dead_zone >= need) return;
+  std::ostringstream m;
+  m << "dynamics.dead_zone = " << p.dynamics.dead_zone << " is below " << kDeadZonePerThreshold
+    << " * solver.relax_threshold = " << need << " with dynamics.mode = " << damping_mode_name(p.dynamics.mode)
+    << ": the relaxation's skipped corrections would keep the motion going for ever; raise dynamics.dead_zone or "
+       "lower solver.relax_threshold (stability rule, docs/parameters.md)";
+  throw Error(m.str());
+}
+}  // namespace
+
 void Params::validate() const {
   tissue.validate();
   material.validate();
   solver.validate();
   dynamics.validate();
   check_damping_settles(dynamics);
+  check_dead_zone_covers_threshold(*this);
   const float limit = dynamics.stable_gain_limit(solver.relax_omega, solver.relax_sweeps);
   const PerTissue s = dynamics.response_scale();
   for (int t = 0; t < kTissueCount; ++t) {
