@@ -316,8 +316,23 @@ def _error_text(log_text):
     return " | ".join((errors or lines)[-3:])[:2000]
 
 
+def _wait_for_dead_writer(case_dir, timeout_s=30.0):
+    """A retry after a killed worker: the killed worker's hpcm (sent SIGKILL as its worker died)
+    may still exist for a moment, and hpcm refuses a staging folder whose writer lives. Waits
+    until that process is gone (at most `timeout_s`; then hpcm's own refusal names it)."""
+    marker = Path(str(case_dir) + ".incomplete") / OUTPUT_MARKER
+    try:
+        m = re.search(r"^pid (\d+) start (\d+)", marker.read_text(), re.M)
+    except OSError:
+        return
+    deadline = time.time() + timeout_s
+    while m and time.time() < deadline and _process_start(int(m.group(1))) == m.group(2):
+        time.sleep(0.1)
+
+
 def run_case(task):
     """Runs one case's hpcm command; returns what happened (never raises for a failed case)."""
+    _wait_for_dead_writer(task["out"])
     start = time.time()
     log_path = Path(task["log"])
     log_path.parent.mkdir(parents=True, exist_ok=True)

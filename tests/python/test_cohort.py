@@ -57,17 +57,18 @@ class WorkerKiller:
         threading.Thread(target=self._kill, args=(client,), daemon=True).start()
 
     def _kill(self, client):
-        key = next(k for k in (f"hpcm-case-{c.id}" for c in self.cases) if "thick-fat" in k)
+        case = next(c.id for c in self.cases if "thick-fat" in c.id)
+        key = f"hpcm-case-{case}"
+        log = self.out / "logs" / f"{case}.log"  # run_case opens it as it starts the case's hpcm
         deadline = time.time() + 60
         while time.time() < deadline:
-            for address, keys in client.processing().items():
-                if key in keys:
-                    time.sleep(0.3)  # let it start its hpcm
-                    pids = client.run(os.getpid, workers=[address])
-                    self.killed_pid = pids[address]
-                    self.case = key[len("hpcm-case-"):]
-                    os.kill(self.killed_pid, signal.SIGKILL)
-                    return
+            if log.exists():
+                time.sleep(0.3)  # well into its hpcm
+                address = next(a for a, keys in client.processing().items() if key in keys)
+                self.killed_pid = client.run(os.getpid, workers=[address])[address]
+                self.case = case
+                os.kill(self.killed_pid, signal.SIGKILL)
+                return
             time.sleep(0.05)
 
 
@@ -77,6 +78,7 @@ def killed_cohort(tmp_path_factory):
     inputs = cohort_inputs(tmp)
     killer = WorkerKiller()
     killer.cases, _ = cohort._cases_for(inputs, tmp / "probe", "experiment", "", "", 1, HPCM)
+    killer.out = tmp / "out"
     start = time.time()
     table = run_cohort(inputs, tmp / "out", on_started=killer)
     return {"tmp": tmp, "inputs": inputs, "table": table, "killer": killer, "wall": time.time() - start}
@@ -242,3 +244,39 @@ def test_command_line_refuses_a_missing_executable(tmp_path):
     p = subprocess.run([sys.executable, "-m", "hpcm.cohort", "--out", str(tmp_path / "o"), "--hpcm",
                         str(tmp_path / "nope"), "phantom:24,24,16"], capture_output=True, text=True)
     assert p.returncode == 2 and "nope: not an executable file" in p.stderr
+
+
+def _alive(pid):
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+def test_a_case_process_dies_with_its_worker():
+    # A killed worker must not leave its hpcm writing into the folder the retry uses.
+    code = ("import subprocess; from hpcm import cohort; "
+            "p = subprocess.Popen(['sleep', '30'], preexec_fn=cohort._die_with_parent); print(p.pid, flush=True); p.wait()")
+    worker = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
+    child = int(worker.stdout.readline())
+    assert _alive(child)
+    worker.kill()
+    worker.wait()
+    deadline = time.time() + 5
+    while _alive(child) and time.time() < deadline:
+        time.sleep(0.05)
+    assert not _alive(child)
+
+
+def test_a_retry_waits_until_the_killed_workers_hpcm_is_gone(tmp_path):
+    # hpcm refuses a staging folder whose writer lives: the retry waits for the dying one.
+    writer = subprocess.Popen(["sleep", "1"])
+    threading.Thread(target=writer.wait, daemon=True).start()  # reaped as init reaps an orphan
+    staging = tmp_path / "case.incomplete"
+    staging.mkdir()
+    (staging / cohort.OUTPUT_MARKER).write_text(f"hpcm output folder (in progress)\npid {writer.pid} start "
+                                                f"{cohort._process_start(writer.pid)}\n")
+    start = time.time()
+    cohort._wait_for_dead_writer(tmp_path / "case", timeout_s=20)
+    assert writer.poll() is not None and 0.5 < time.time() - start < 10
