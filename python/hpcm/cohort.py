@@ -51,7 +51,8 @@ class Case:
     """One (input, parameter set): what to run and where its results go."""
 
     def __init__(self, input, downsample=1, roi="", series="", set_name="", set_values=None, params_file=""):
-        self.input = str(input)
+        # Absolute: the workers of a cluster need not share the command's working folder.
+        self.input = str(input) if str(input).startswith("phantom:") else os.path.abspath(input)
         self.downsample = int(downsample)
         self.roi = roi or ""
         self.series = series or ""

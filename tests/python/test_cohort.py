@@ -280,3 +280,14 @@ def test_a_retry_waits_until_the_killed_workers_hpcm_is_gone(tmp_path):
     start = time.time()
     cohort._wait_for_dead_writer(tmp_path / "case", timeout_s=20)
     assert writer.poll() is not None and 0.5 < time.time() - start < 10
+
+
+def test_a_scenario_run_cohort_writes_frames_and_exports(tmp_path):
+    scenario = tmp_path / "paper.toml"
+    scenario.write_text(subprocess.run([HPCM, "params", "--scenario-paper"], capture_output=True, text=True,
+                                       check=True).stdout)
+    t = run_cohort(["phantom:24,24,16", "phantom:24,24,16:table"], tmp_path / "out", job="run", scenario=str(scenario))
+    assert (t["status"] == "done").all(), t["error"].tolist()
+    assert list(t["frames"]) == [150, 150] and (t["exports"] >= 1).all()
+    for case in t["case"]:
+        assert (tmp_path / "out" / "cases" / case / "export" / "export.json").is_file()
