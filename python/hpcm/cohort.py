@@ -12,6 +12,7 @@ set, pandas) and cohort_report.md with plots (matplotlib). See docs/cohort.md.
 import argparse
 import csv
 import ctypes
+import hashlib
 import itertools
 import json
 import math
@@ -37,7 +38,7 @@ LOCK_NAME = ".hpcm-cohort.lock"
 OUTPUT_MARKER = ".hpcm-output"  # apps/hpcm/output_dir.hpp kOutputMarker
 # Peak bytes per lattice element of one case (apps/common/memory_estimate.hpp, measured).
 BYTES_PER_ELEMENT = {"experiment": 220, "sweep": 220, "run": 160}
-WORKER_OVERHEAD_BYTES = 300e6  # a Dask worker process itself, without the case
+WORKER_OVERHEAD_BYTES = 500e6  # a Dask worker process itself (about 120 MB measured), without the case
 
 
 class CohortError(ValueError):
@@ -286,6 +287,17 @@ def case_command(hpcm_exe, job, case, out_dir, settle_frames=None, scenario="", 
     if params:
         argv += ["--params", params]
     return argv
+
+
+def case_fingerprint(argv, params_file, scenario_file):
+    """What a finished case was computed from: its command, the contents of its parameter and
+    scenario files, and the hpcm executable (size and time of change)."""
+    h = hashlib.sha256(json.dumps(argv).encode())
+    for path in (params_file, scenario_file, argv[0]):
+        if path and os.path.isfile(path):
+            st = os.stat(path)
+            h.update(f"{path} {st.st_size} {st.st_mtime_ns}".encode() if path == argv[0] else Path(path).read_bytes())
+    return h.hexdigest()
 
 
 def is_finished(case_dir, job):
@@ -594,13 +606,17 @@ def _run_locked(inputs, out, job, scenario, sweep, params, downsample, settle_fr
     for c in cases:
         rec_path = records_dir / f"{c.id}.json"
         case_dir = cases_dir / c.id
+        argv = case_command(hpcm_exe, job, c, str(case_dir), settle_frames, scenario, params, export_args)
+        fingerprint = case_fingerprint(argv, c.params_file or params, scenario)
         old = json.loads(rec_path.read_text()) if rec_path.is_file() else {}
-        if is_finished(case_dir, job) and old.get("status") == "done":
+        # Resume: only a finished case of the same command and files; another setting reruns it.
+        if is_finished(case_dir, job) and old.get("status") == "done" and old.get("fingerprint") == fingerprint:
             old["resumed"] = True
             records[c.id] = old
             continue
         rec = {"case": c.id, "input": c.input, "downsample": c.downsample, "roi": c.roi, "series": c.series,
-               "set": c.set_name, **{f"param:{k}": v for k, v in c.set_values.items()}, "resumed": False}
+               "set": c.set_name, **{f"param:{k}": v for k, v in c.set_values.items()}, "resumed": False,
+               "command": argv, "fingerprint": fingerprint}
         try:
             rec.update(probe(hpcm_exe, c))
         except CohortError as e:
@@ -659,9 +675,7 @@ def _run_tasks(client, todo, records, out, job, scenario, settle_frames, export_
     for c in todo:
         case_dir = out / "cases" / c.id
         task = {"id": c.id, "job": job, "out": str(case_dir), "log": str(out / "logs" / f"{c.id}.log"),
-                "threads": threads,
-                "argv": case_command(hpcm_exe, job, c, str(case_dir), settle_frames, scenario, params, export_args)}
-        records[c.id]["command"] = task["argv"]
+                "threads": threads, "argv": records[c.id]["command"]}
         # retries=1: a task that raised (not a failed case: that returns) is run once more.
         futures[client.submit(run_case, task, key=f"hpcm-case-{c.id}", pure=False, retries=1)] = c
     if on_started:

@@ -291,3 +291,27 @@ def test_a_scenario_run_cohort_writes_frames_and_exports(tmp_path):
     assert list(t["frames"]) == [150, 150] and (t["exports"] >= 1).all()
     for case in t["case"]:
         assert (tmp_path / "out" / "cases" / case / "export" / "export.json").is_file()
+
+
+def test_a_rerun_with_other_settings_computes_again(tmp_path):
+    # Resume takes only cases computed from the same command and files: a changed setting or a
+    # changed parameter file must not leave the earlier figures in the table.
+    params = tmp_path / "p.toml"
+    params.write_text("[dynamics]\nalpha = 0.9\n")
+    first = run_cohort(["phantom:24,24,16"], tmp_path / "out", params=str(params))
+    assert list(run_cohort(["phantom:24,24,16"], tmp_path / "out", params=str(params))["resumed"]) == [True]
+    assert list(run_cohort(["phantom:24,24,16"], tmp_path / "out", params=str(params),
+                           settle_frames="41")["resumed"]) == [False]
+    params.write_text("[dynamics]\nalpha = 0.8\n")
+    again = run_cohort(["phantom:24,24,16"], tmp_path / "out", params=str(params), settle_frames="41")
+    assert list(again["resumed"]) == [False] and list(again["status"]) == ["done"]
+    summary = json.loads((tmp_path / "out" / "cases" / first["case"][0] / "summary.json").read_text())
+    assert summary["params"]["dynamics"]["alpha"] == pytest.approx(0.8)
+
+
+def test_the_memory_figures_are_hpcms_own():
+    # cohort.BYTES_PER_ELEMENT mirrors apps/common/memory_estimate.hpp (what hpcm refuses by).
+    header = Path(__file__).resolve().parents[2] / "apps" / "common" / "memory_estimate.hpp"
+    text = header.read_text()
+    assert f"kExperimentBytesPerElement = {cohort.BYTES_PER_ELEMENT['experiment']};" in text
+    assert f"kRunBytesPerElement = {cohort.BYTES_PER_ELEMENT['run']};" in text
