@@ -187,8 +187,8 @@ def load_sweep(path):
         base = str(Path(path).parent / base)
     sets = []
     if "grid" in doc:
-        grid = doc["grid"]
-        if not isinstance(grid, dict) or not grid:
+        grid = _flatten(doc["grid"]) if isinstance(doc["grid"], dict) else None  # [grid.dynamics] alpha = [...]
+        if not grid:
             raise CohortError(f"sweep {path}: [grid] must map parameter names to lists of values")
         for key, values in grid.items():
             if not isinstance(values, list) or not values:

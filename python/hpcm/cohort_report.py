@@ -67,12 +67,20 @@ def _plot_sweep(table, swept, plots):
     names = []
     done = table[table["status"] == "done"]
     for p in swept:
+        try:
+            x, labels = done[p].astype(float), None
+        except (TypeError, ValueError):  # a mode name or a per-tissue table: one position per value
+            labels = list(dict.fromkeys(str(v) for v in done[p]))
+            x = [labels.index(str(v)) for v in done[p]]
         fig, axes = plt.subplots(3, 3, figsize=(12, 10), squeeze=False)
         for r, cond in enumerate(CONDITIONS):
             for k, what in enumerate(FIGURES):
                 ax = axes[r][k]
                 for t in TISSUES:
-                    ax.scatter(done[p].astype(float), done[f"{cond}_{t}_{what}"], label=t, s=16)
+                    ax.scatter(x, done[f"{cond}_{t}_{what}"], label=t, s=16)
+                if labels:
+                    ax.set_xticks(range(len(labels)))
+                    ax.set_xticklabels(labels, fontsize=6, rotation=20)
                 ax.set_title(f"{cond} {what}", fontsize=9)
                 ax.set_xlabel(p, fontsize=8)
         axes[0][0].legend(fontsize=7)
