@@ -584,6 +584,32 @@ def _cases_for(inputs, out, job, sweep, params, downsample, hpcm_exe):
     return cases, swept
 
 
+def _probe_all(hpcm_exe, cases, records, records_dir):
+    """`hpcm info` once per distinct input (in parallel, as many as there are cores); a case
+    whose input cannot be read is recorded as failed here. Returns the cases to run."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    def one(args):
+        try:
+            return probe(hpcm_exe, next(c for c in cases if tuple(c.source_args()) == args))
+        except CohortError as e:
+            return e
+
+    keys = list(dict.fromkeys(tuple(c.source_args()) for c in cases))
+    with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
+        found = dict(zip(keys, pool.map(one, keys)))
+    todo = []
+    for c in cases:
+        geometry, rec = found[tuple(c.source_args())], records[c.id]
+        if isinstance(geometry, CohortError):
+            rec.update(status="failed", error=f"input {c.input}: {geometry}", wall_s=0.0)
+            _json_write(records_dir / f"{c.id}.json", rec)
+        else:
+            rec.update(geometry)
+            todo.append(c)
+    return todo
+
+
 def _run_locked(inputs, out, job, scenario, sweep, params, downsample, settle_frames, export_args, hpcm_exe,
                 scheduler, workers, threads, plots, progress, on_started, pd):
     from tqdm import tqdm
@@ -602,7 +628,7 @@ def _run_locked(inputs, out, job, scenario, sweep, params, downsample, settle_fr
     for d in (records_dir, logs_dir, cases_dir):
         d.mkdir(exist_ok=True)
 
-    records, todo = {}, []
+    records, pending = {}, []
     for c in cases:
         rec_path = records_dir / f"{c.id}.json"
         case_dir = cases_dir / c.id
@@ -617,30 +643,30 @@ def _run_locked(inputs, out, job, scenario, sweep, params, downsample, settle_fr
         rec = {"case": c.id, "input": c.input, "downsample": c.downsample, "roi": c.roi, "series": c.series,
                "set": c.set_name, **{f"param:{k}": v for k, v in c.set_values.items()}, "resumed": False,
                "command": argv, "fingerprint": fingerprint}
-        try:
-            rec.update(probe(hpcm_exe, c))
-        except CohortError as e:
-            rec.update(status="failed", error=f"input {c.input}: {e}", wall_s=0.0)
-            _json_write(rec_path, rec)
-            records[c.id] = rec
-            continue
         records[c.id] = rec
-        todo.append(c)
+        pending.append(c)
+    todo = _probe_all(hpcm_exe, pending, records, records_dir)
 
     largest = max((records[c.id]["elements"] for c in todo), default=0)
     case_bytes = largest * BYTES_PER_ELEMENT[job]
-    client, cluster = _start_dask(scheduler, workers, threads, case_bytes)
-    n_workers = len(client.scheduler_info()["workers"])
-    print(f"cohort: {len(cases)} cases, {len(cases) - len(todo)} already recorded, {len(todo)} to run on "
-          f"{n_workers} Dask workers ({threads} thread(s) per case, largest case {largest} elements, "
-          f"about {case_bytes / 1e9:.2f} GB); output {out}", flush=True)
-    try:
-        _run_tasks(client, todo, records, out, job, scenario, settle_frames, export_args, params, hpcm_exe,
-                   threads, progress, on_started, tqdm)
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+    resumed, unreadable = len(cases) - len(pending), len(pending) - len(todo)
+    print(f"cohort: {len(cases)} cases, {resumed} finished earlier, {unreadable} with an unreadable input, "
+          f"{len(todo)} to run", end="", flush=True)
+    n_workers = 0
+    if todo:  # nothing to run: no cluster to start
+        client, cluster = _start_dask(scheduler, workers, threads, case_bytes)
+        n_workers = len(client.scheduler_info()["workers"])
+        print(f" on {n_workers} Dask workers ({threads} thread(s) per case, largest case {largest} elements, "
+              f"about {case_bytes / 1e9:.2f} GB); output {out}", flush=True)
+        try:
+            _run_tasks(client, todo, records, out, job, scenario, settle_frames, export_args, params, hpcm_exe,
+                       threads, progress, on_started, tqdm)
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+    else:
+        print(f"; output {out}", flush=True)
 
     table = _table(cases, records, out, job, swept, pd)
     table.to_csv(out / "cohort.csv", index=False)
