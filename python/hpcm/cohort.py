@@ -555,8 +555,11 @@ def run(inputs, out, job="experiment", *, scenario="", sweep="", params="", down
         raise CohortError("job run needs a scenario file (--run SCENARIO.toml)")
     if job == "sweep" and not sweep:
         raise CohortError("job sweep needs a sweep file (--sweep SWEEP.toml)")
-    if not 1 <= int(threads_per_case) <= 4096:
-        raise CohortError(f"threads per case {threads_per_case}: must be in [1, 4096]")
+    # The ranges of hpcm's own options: refused once here, not once per case.
+    for name, value, lo, hi in (("--threads-per-case", threads_per_case, 1, 4096), ("--downsample", downsample, 1, 4096),
+                                ("--settle-frames", settle_frames, 1, 10_000_000), ("--workers", workers, 1, 4096)):
+        if value is not None and (not re.fullmatch(r"[0-9]+", str(value)) or not lo <= int(value) <= hi):
+            raise CohortError(f"{name} {value}: must be an integer in [{lo}, {hi}]")
     hpcm_exe = find_hpcm(hpcm_exe)
     out = Path(out).absolute()
     if out.exists() and not out.is_dir():

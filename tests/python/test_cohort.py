@@ -315,3 +315,10 @@ def test_the_memory_figures_are_hpcms_own():
     text = header.read_text()
     assert f"kExperimentBytesPerElement = {cohort.BYTES_PER_ELEMENT['experiment']};" in text
     assert f"kRunBytesPerElement = {cohort.BYTES_PER_ELEMENT['run']};" in text
+
+
+@pytest.mark.parametrize("option", [{"settle_frames": 0}, {"downsample": 0}, {"threads_per_case": 0}, {"workers": 0}])
+def test_options_out_of_range_are_refused_before_anything_runs(tmp_path, option):
+    with pytest.raises(cohort.CohortError, match=r"must be an integer in \[1, "):
+        cohort.run(["phantom:24,24,16"], tmp_path / "out", hpcm_exe=HPCM, progress=False, **option)
+    assert not (tmp_path / "out").exists()
