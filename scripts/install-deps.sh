@@ -12,6 +12,7 @@ PKGS=(
   python3-dev pybind11-dev python3-numpy python3-pytest
   python3-setuptools python3-wheel python3-pip python3-venv  # pip install . (pyproject.toml)
   python3-nibabel python3-pydicom python3-pil python3-tqdm python3-scipy plastimatch
+  python3-pandas python3-distributed  # python3 -m hpcm.cohort (Dask)
   xvfb xauth
   clang lld libclang-rt-14-dev libomp-14-dev  # libFuzzer harnesses (preset fuzz: clang, lld, OpenMP)
 )

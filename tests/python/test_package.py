@@ -177,7 +177,7 @@ def _pip_install(python, tmp_path, *args):
 
 def _assert_complete_package(package_dir):
     names = {p.name for p in package_dir.iterdir()}
-    assert {"__init__.py", "__init__.pyi", "py.typed"} <= names, names
+    assert {"__init__.py", "__init__.pyi", "py.typed", "cohort.py", "cohort_report.py"} <= names, names
     assert any(n.startswith("_hpcm") and n.endswith(".so") for n in names), names
 
 
