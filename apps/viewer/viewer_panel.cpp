@@ -291,7 +291,7 @@ bool Viewer::panel_solver_and_dynamics() {
     changed |= per_tissue("inverse mass per class (>= 0, one > 0)", d.inverse_mass, 0, 10, "%.3f");
     changed |= ImGui::SliderFloat("s_min [0,s_max]", &d.s_min, 0, 1, "%.3f", ImGuiSliderFlags_AlwaysClamp);
     changed |= ImGui::SliderFloat("s_max [s_min,1]", &d.s_max, 0, 1, "%.3f", ImGuiSliderFlags_AlwaysClamp);
-    changed |= ImGui::InputFloat("dead zone [3e-4,1) (B, C)", &d.dead_zone, 1e-4f, 1e-3f, "%.5f");
+    changed |= ImGui::InputFloat("dead zone [3e-4,1), >= 2 x threshold (B, C)", &d.dead_zone, 1e-4f, 1e-3f, "%.5f");
     changed |= ImGui::SliderFloat("v_max (0,10]", &d.v_max, 0.001f, 10, "%.3f", ImGuiSliderFlags_AlwaysClamp | ImGuiSliderFlags_Logarithmic);
     changed |= ImGui::SliderFloat("beta [0,2]", &d.beta, 0, 2, "%.3f", ImGuiSliderFlags_AlwaysClamp);
     changed |= per_tissue("rho per class [0,2]", d.rho, 0, 2, "%.3f");

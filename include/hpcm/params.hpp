@@ -53,7 +53,7 @@ struct DynamicsParams {
   float v_max = 0.5f;                        ///< (0, 10] lattice units per frame
   /// [0, 0.01] lattice units per frame: a velocity below it is set to 0 (the element comes to
   /// rest and its brick can sleep); ignored when solver.sleep is false.
-  float sleep_speed = 1e-5f;
+  float sleep_speed = 1e-7f;
   float beta = 1.0f;                         ///< global inertia gain, [0, 2]
   PerTissue rho{1.0f, 1.0f, 1.0f, 1.0f};     ///< per-class position gain, [0, 2]
   float margin = 2.0f;                       ///< boundary margin, [0, 64] lattice units

@@ -213,7 +213,7 @@ std::string write_params(const Params& p, const std::string& header) {
   w.kv("grab_radius = " + fmt_float(p.solver.grab_radius), "(0, 64] lattice units: elements this close to the grab centre follow the tool");
   w.kv("brick_size = " + std::to_string(p.solver.brick_size), "4 | 8 | 16: edge of the bricks of sparse work");
   w.kv("relax_sweeps = " + std::to_string(p.solver.relax_sweeps), "[0, 256] relaxation sweeps K per frame (early exit)");
-  w.kv("relax_threshold = " + fmt_float(p.solver.relax_threshold), "[0, 0.999] lattice units: smaller relaxation corrections are skipped");
+  w.kv("relax_threshold = " + fmt_float(p.solver.relax_threshold), "[0, 0.999] lattice units: smaller relaxation corrections are skipped (decides how far a pull reaches)");
   w.kv("relax_omega = " + fmt_float(p.solver.relax_omega), "[1, 1.95] over-relaxation of each relaxation step (1 = plain Gauss-Seidel)");
   w.kv("anchors = " + quoted(anchor_mode_name(p.solver.anchors)), "\"none\" | \"bone\" | \"border\": elements held FIXED every frame");
   w.kv("max_propagation_sweeps = " + std::to_string(p.solver.max_propagation_sweeps), "[1, 10000000] safety cap on propagation sweeps per frame");
@@ -231,7 +231,7 @@ std::string write_params(const Params& p, const std::string& header) {
   w.kv("inverse_mass = " + per_tissue(p.dynamics.inverse_mass), "each in [0, 1e6], at least one > 0; 0 = no dynamics (bone)");
   w.kv("s_min = " + fmt_float(p.dynamics.s_min), "response scale s = clamp(m^-1 / max m^-1, s_min, s_max),");
   w.kv("s_max = " + fmt_float(p.dynamics.s_max), "0 <= s_min <= s_max <= 1");
-  w.kv("dead_zone = " + fmt_float(p.dynamics.dead_zone), "[0, 0.999] lattice units, at least 3e-4 under simple/viscoelastic: smaller ChainMail corrections dX count as 0");
+  w.kv("dead_zone = " + fmt_float(p.dynamics.dead_zone), "[0, 0.999] lattice units, under simple/viscoelastic at least 3e-4 and at least 2 * solver.relax_threshold: smaller ChainMail corrections dX count as 0");
   w.kv("v_max = " + fmt_float(p.dynamics.v_max), "(0, 10] lattice units / frame: velocity magnitude clamp");
   w.kv("beta = " + fmt_float(p.dynamics.beta), "[0, 2] global inertia gain: X <- X+ + beta rho V");
   w.kv("rho = " + per_tissue(p.dynamics.rho), "each [0, 2] per-class position gain");

@@ -109,7 +109,7 @@ TEST(ParamsFile, DefaultFileDocumentsEveryKeyWithItsRange) {
                           "inverse_mass = { air = 1.0, skin_fat = 1.0, muscle_organ = 0.15, bone = 0.0 }", "s_min = 0.0",
                           "s_max = 1.0", "dead_zone = 0.06", "v_max = 0.5", "beta = 1.0",
                           "rho = { air = 1.0, skin_fat = 1.0, muscle_organ = 1.0, bone = 1.0 }", "margin = 2.0", "sleep = true",
-                          "sleep_speed = 0.00001",
+                          "sleep_speed = 1e-07",
                           "{ hu = -1000.0, tau = 0.5, w = 1.0 }", "{ hu = 700.0, tau = 0.005, w = 0.02 }", "preset"})
     EXPECT_CONTAINS(text, key);
   // Every "key = value" line carries a comment with its valid range or choices.
