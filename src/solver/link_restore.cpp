@@ -54,6 +54,7 @@ void LinkRestorer::init(const Model& m) {
   stamp_.assign(n, 0);
   epoch_ = 0;
   for (auto& v : val_) v.assign(n, 0.0f);
+  placed_.assign(n, 0.0f);
 }
 
 void LinkRestorer::pass(const Model& m, const RestoreAccess& pos, int b, int k, float wall_lo, float wall_hi,
@@ -72,8 +73,11 @@ void LinkRestorer::pass(const Model& m, const RestoreAccess& pos, int b, int k, 
     queued_[e] = 0;
     const Int3 c = m.coords(e);
     float bound = upper ? wall_hi : wall_lo;
+    const float xe = value(pos, b, k, e);
     for_each_face_neighbour(m, c.x, c.y, c.z, e, [&](Index n, int a, int side, const LinkLimits& L) {
-      const float lb = link_bound(value(pos, b, k, n), L, a, side, b, upper, inward);
+      const float cn = value(pos, b, k, n);
+      if (left_as_placed(xe, placed_[e], cn, placed_[n], L, a, side, b, inward)) return;
+      const float lb = link_bound(cn, L, a, side, b, upper, inward);
       bound = upper ? (lb < bound ? lb : bound) : (lb > bound ? lb : bound);
     });
     float& x = value(pos, b, k, e);
