@@ -54,7 +54,6 @@ void LinkRestorer::init(const Model& m) {
   stamp_.assign(n, 0);
   epoch_ = 0;
   for (auto& v : val_) v.assign(n, 0.0f);
-  placed_.assign(n, 0.0f);
 }
 
 void LinkRestorer::pass(const Model& m, const RestoreAccess& pos, int b, int k, float wall_lo, float wall_hi,
@@ -74,9 +73,10 @@ void LinkRestorer::pass(const Model& m, const RestoreAccess& pos, int b, int k, 
     const Int3 c = m.coords(e);
     float bound = upper ? wall_hi : wall_lo;
     const float xe = value(pos, b, k, e);
+    const bool e_moved = mark_[e] != 0;  // changed by a pass on this axis (either copy)
     for_each_face_neighbour(m, c.x, c.y, c.z, e, [&](Index n, int a, int side, const LinkLimits& L) {
       const float cn = value(pos, b, k, n);
-      if (left_as_placed(xe, placed_[e], cn, placed_[n], L, a, side, b, inward)) return;
+      if (left_as_placed(e_moved, mark_[n] != 0, xe, cn, L, a, side, b, inward)) return;
       const float lb = link_bound(cn, L, a, side, b, upper, inward);
       bound = upper ? (lb < bound ? lb : bound) : (lb > bound ? lb : bound);
     });

@@ -41,21 +41,20 @@ class LinkRestorer {
   /// whose value changed in changed_ (each once per axis).
   void pass(const Model& m, const RestoreAccess& pos, int b, int k, float wall_lo, float wall_hi, bool upper,
             const std::vector<Index>& seeds);
-  /// The coordinate of element e in copy k, loaded from pos on first use in this axis (and kept
-  /// in placed_).
+  /// The coordinate of element e in copy k, loaded from pos on first use in this axis.
   float& value(const RestoreAccess& pos, int b, int k, Index e) {
     if (stamp_[e] != epoch_) {
       stamp_[e] = epoch_;
-      val_[0][e] = val_[1][e] = placed_[e] = pos.position(e)[b];
+      val_[0][e] = val_[1][e] = pos.position(e)[b];
     }
     return val_[k][e];
   }
   std::vector<Index> changed_, queue_, pass_seeds_, moved_list_;
-  std::vector<std::uint8_t> queued_, mark_, moved_flag_;
+  std::vector<std::uint8_t> queued_, moved_flag_;
+  std::vector<std::uint8_t> mark_;  ///< changed by a pass on the current axis (listed in changed_)
   std::vector<std::uint32_t> stamp_;
   std::uint32_t epoch_ = 0;
   std::vector<float> val_[2];  ///< coordinate b under the two pass orders
-  std::vector<float> placed_;  ///< coordinate b as the stage placed it (before this restoration)
 };
 
 }  // namespace hpcm::solver

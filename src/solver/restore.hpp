@@ -59,18 +59,19 @@ HPCM_HD inline float link_excess(float x, float cn, const LinkLimits& L, int a, 
 }
 
 /// Whether a pass leaves the link between e (coordinate x) and n (cn) as the stage placed it:
-/// on an axis that rounds inward, while neither end has moved in this restoration (x and cn
-/// are their coordinates before it, x_placed and cn_placed) and the link is within
-/// kRestoreTolerance. The passes hold every link they act on exactly inside its box, more
-/// strictly than the check that chose the seeds (kRestoreTolerance): links the stage left up to
-/// that far outside (half a float step of a coordinate below 128) would otherwise be "restored"
-/// too, and where such a link sits in a chain stretched to its slack between a moved element and
-/// a FIXED one, the last one-sided pass pushed the chain into the FIXED element's box (1.7e-5
-/// outside on the DICOM series at f = 2, docs/solver.md). Links with a moved end are always
-/// held exactly, so a pass still leaves every link it moves an element of exactly inside its box.
-HPCM_HD inline bool left_as_placed(float x, float x_placed, float cn, float cn_placed, const LinkLimits& L, int a,
-                                   int side, int b, bool inward) {
-  return inward && x == x_placed && cn == cn_placed && link_excess(x, cn, L, a, side, b) <= kRestoreTolerance;
+/// on an axis that rounds inward, while neither end has moved in this restoration (e_moved,
+/// n_moved: changed by any pass on this axis so far) and the link is within kRestoreTolerance.
+/// The passes hold every link they act on exactly inside its box, more strictly than the check
+/// that chose the seeds (kRestoreTolerance): links the stage left up to that far outside (half a
+/// float step of a coordinate below 128) would otherwise be "restored" too, and where such a
+/// link sits in a chain stretched to its slack between a moved element and a FIXED one, the last
+/// one-sided pass pushed the chain into the FIXED element's box (1.7e-5 outside on the DICOM
+/// series at f = 2, docs/solver.md). Links with a moved end are always held exactly, so a pass
+/// still leaves every link it moves an element of exactly inside its box. "Moved" only ever
+/// turns on during a pass and only adds bounds, so a pass stays a monotone fixed-point iteration.
+HPCM_HD inline bool left_as_placed(bool e_moved, bool n_moved, float x, float cn, const LinkLimits& L, int a, int side,
+                                   int b, bool inward) {
+  return inward && !e_moved && !n_moved && link_excess(x, cn, L, a, side, b) <= kRestoreTolerance;
 }
 
 /// One float step above coordinate c >= 0 (NaN for an infinite c).
