@@ -72,8 +72,12 @@ void LinkRestorer::pass(const Model& m, const RestoreAccess& pos, int b, int k, 
     queued_[e] = 0;
     const Int3 c = m.coords(e);
     float bound = upper ? wall_hi : wall_lo;
+    const float xe = value(pos, b, k, e);
+    const bool e_moved = mark_[e] != 0;  // changed by a pass on this axis (either copy)
     for_each_face_neighbour(m, c.x, c.y, c.z, e, [&](Index n, int a, int side, const LinkLimits& L) {
-      const float lb = link_bound(value(pos, b, k, n), L, a, side, b, upper, inward);
+      const float cn = value(pos, b, k, n);
+      if (left_as_placed(e_moved, mark_[n] != 0, xe, cn, L, a, side, b, inward)) return;
+      const float lb = link_bound(cn, L, a, side, b, upper, inward);
       bound = upper ? (lb < bound ? lb : bound) : (lb > bound ? lb : bound);
     });
     float& x = value(pos, b, k, e);

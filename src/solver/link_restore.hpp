@@ -50,7 +50,8 @@ class LinkRestorer {
     return val_[k][e];
   }
   std::vector<Index> changed_, queue_, pass_seeds_, moved_list_;
-  std::vector<std::uint8_t> queued_, mark_, moved_flag_;
+  std::vector<std::uint8_t> queued_, moved_flag_;
+  std::vector<std::uint8_t> mark_;  ///< changed by a pass on the current axis (listed in changed_)
   std::vector<std::uint32_t> stamp_;
   std::uint32_t epoch_ = 0;
   std::vector<float> val_[2];  ///< coordinate b under the two pass orders

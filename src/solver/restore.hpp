@@ -17,7 +17,10 @@
 // direction. The midpoint is rounded, which can leave a link slightly outside its box, so a last
 // lower and raise pass from the midpoints puts every link back: within half a float step of a
 // coordinate below 128 (the bounds rounded to nearest), exactly inside its box on axes that
-// reach further (the bounds rounded toward the inside, link_bound).
+// reach further (the bounds rounded toward the inside, link_bound). On those axes a link whose
+// ends the restoration has not moved is left as the stage placed it while it is within the
+// tolerance (left_as_placed): the passes act only on the links the check found and on those
+// around the elements they move.
 // Each pass is a monotone fixed-point iteration, so its result does not depend on the order in
 // which elements are visited: any schedule (sequential work list, parallel chaotic sweeps on
 // the GPU) gives the same floats.
@@ -41,6 +44,34 @@ HPCM_HD inline bool link_holds(float x, float cn, const LinkLimits& L, int a, in
   }
   const float d = side > 0 ? x - cn : cn - x;  // the link's + end minus its - end
   return d >= L.min_d && d <= L.max_d;
+}
+
+/// How far coordinate x of element e on axis b lies outside the interval its link to neighbour n
+/// (coordinate cn on that axis) allows, by the same float arithmetic as link_violation (0 inside).
+HPCM_HD inline float link_excess(float x, float cn, const LinkLimits& L, int a, int side, int b) {
+  if (b != a) {
+    const float d = x - cn;
+    const float ad = d < 0 ? -d : d;
+    return ad > L.shear ? ad - L.shear : 0.0f;
+  }
+  const float d = side > 0 ? x - cn : cn - x;  // the link's + end minus its - end
+  return d < L.min_d ? L.min_d - d : (d > L.max_d ? d - L.max_d : 0.0f);
+}
+
+/// Whether a pass leaves the link between e (coordinate x) and n (cn) as the stage placed it:
+/// on an axis that rounds inward, while neither end has moved in this restoration (e_moved,
+/// n_moved: changed by any pass on this axis so far) and the link is within kRestoreTolerance.
+/// The passes hold every link they act on exactly inside its box, more strictly than the check
+/// that chose the seeds (kRestoreTolerance): links the stage left up to that far outside (half a
+/// float step of a coordinate below 128) would otherwise be "restored" too, and where such a
+/// link sits in a chain stretched to its slack between a moved element and a FIXED one, the last
+/// one-sided pass pushed the chain into the FIXED element's box (1.7e-5 outside on the DICOM
+/// series at f = 2, docs/solver.md). Links with a moved end are always held exactly, so a pass
+/// still leaves every link it moves an element of exactly inside its box. "Moved" only ever
+/// turns on during a pass and only adds bounds, so a pass stays a monotone fixed-point iteration.
+HPCM_HD inline bool left_as_placed(bool e_moved, bool n_moved, float x, float cn, const LinkLimits& L, int a, int side,
+                                   int b, bool inward) {
+  return inward && !e_moved && !n_moved && link_excess(x, cn, L, a, side, b) <= kRestoreTolerance;
 }
 
 /// One float step above coordinate c >= 0 (NaN for an infinite c).

@@ -8,6 +8,7 @@
 // 1.52e-5 at y = 490 and 3.05e-5 at y = 588, beyond 1e-5 (docs/solver.md, "Float resolution").
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <ostream>
 #include <random>
@@ -125,4 +126,88 @@ TEST(RestoreRoundingPull, PullAtTheToolLimitFarFromTheOrigin) {
     }
     std::printf("bar of length %d: largest link violation after the ChainMail stage: %.3g\n", length, worst);
   }
+}
+
+namespace {
+
+struct FixedVectorAccess : solver::RestoreAccess {
+  std::vector<Vec3>& pos;
+  const std::vector<std::uint8_t>& fixed_flags;
+  FixedVectorAccess(std::vector<Vec3>& p, const std::vector<std::uint8_t>& f) : pos(p), fixed_flags(f) {}
+  Vec3 position(Index i) const override { return pos[static_cast<std::size_t>(i)]; }
+  void set_coordinate(Index i, int axis, float value) override { pos[static_cast<std::size_t>(i)][axis] = value; }
+  bool fixed(Index i) const override { return fixed_flags[static_cast<std::size_t>(i)] != 0; }
+};
+
+}  // namespace
+
+// The DICOM series at f = 2 (256 x 256 x 10), condition B, pulled to the tool limit: a chain from a
+// grabbed (FIXED) element stretched to its slack, whose next link the stage left outside its box
+// by less than the restoration's tolerance (half a float step of a coordinate below 128, on an
+// axis that rounds inward because it reaches 255). The restoration moved a neighbour of the
+// chain's first free element; its last one-sided pass then "restored" the untouched link by
+// raising that element a float step into the grabbed element's box, which no later pass could
+// undo: 1.7e-5 outside. Here the same geometry along x (a 200-cell bar, coordinates near 80):
+// g (FIXED) -> A (exactly at g's bound) -> B (up to 4e-6 beyond A's bound), and a displaced
+// element D beside A for the restoration to move. Every link must end within the tolerance.
+TEST(RestoreRoundingPull, ChainAtTheToolLimitWithALinkTheStageLeftWithinTheTolerance) {
+  const int gx = 80;
+  int cases = 0;
+  float worst = 0;
+  // The links g-A and A-B differ in tolerance (HU rising along the bar): the float steps by
+  // which their stretch limits are missed differ too. The slopes vary both, the grab positions g.
+  for (int t = 0; t < 40; ++t) {
+    Params p = test::uniform_params(0.2f, 0.5f);
+    p.material.points = {{-1000.0f, 0.15f, 0.5f}, {1000.0f, 0.35f, 0.5f}};
+    const float slope = 7.0f + 3.1f * float(t);  // HU per cell
+    const Model m = build_model(
+        test::make_volume({200, 2, 1}, [slope](int x, int, int) { return std::clamp(slope * float(x - gx), -1000.0f, 1000.0f); }), p);
+    solver::BrickGrid grid;
+    grid.init(m.dims, 8);
+    const solver::Wall wall = solver::make_wall(m.dims, 2.0f);
+    ASSERT_TRUE(solver::rounds_inward(wall.hi[0]));
+    const LinkLimits& L = m.link(0, m.index(gx, 0, 0));
+    const LinkLimits& LB = m.link(0, m.index(gx + 1, 0, 0));
+    for (int k = 0; k < 10; ++k) {
+      const float g = 78.5f + 1e-3f * float(k);
+      // A: the largest coordinate whose link to g holds (the tool limit stretches it to its slack).
+      const float a = solver::link_bound(g, L, 0, +1, 0, true, true);
+      // B: the stage's nearest rounding left the link A-B outside its box, within the tolerance.
+      float b = a + LB.max_d;
+      while (link_violation(Vec3{a, 0, 0}, Vec3{b, 0, 0}, LB, 0) == 0.0f) b = std::nextafter(b, INFINITY);
+      if (link_violation(Vec3{a, 0, 0}, Vec3{b, 0, 0}, LB, 0) > solver::kRestoreTolerance) continue;
+      ++cases;
+      std::vector<Vec3> pos(static_cast<std::size_t>(m.size()));
+      std::vector<std::uint8_t> fixed(static_cast<std::size_t>(m.size()), 0);
+      for (Index i = 0; i < m.size(); ++i) {
+        const Int3 c = m.coords(i);
+        // Left of g: shifted rigidly with it; right of A: B and the rest at rest spacing. Row 1
+        // alike, its part right of D 0.01 lower (no link there left outside its box).
+        const float right = c.y == 0 ? b : b - 0.01f;
+        const float x = c.x <= gx ? g - float(gx - c.x) : (c.x == gx + 1 ? a : right + float(c.x - gx - 2));
+        pos[static_cast<std::size_t>(i)] = Vec3{x, float(c.y), 0.0f};
+        if (c.x == gx) fixed[static_cast<std::size_t>(i)] = 1;
+      }
+      // D, beside A: 0.01 beyond its grabbed neighbour's box. The restoration lowers it back to
+      // the bound (A's coordinate) and then looks at its neighbours, A among them.
+      pos[static_cast<std::size_t>(m.index(gx + 1, 1, 0))].x += 0.01f;
+      FixedVectorAccess acc(pos, fixed);
+      std::vector<Index> all(static_cast<std::size_t>(grid.count));
+      for (Index i = 0; i < grid.count; ++i) all[static_cast<std::size_t>(i)] = i;
+      std::vector<Index> seeds;
+      RestoreStats st;
+      solver::find_violations(m, grid, all, acc, wall, seeds, st);
+      ASSERT_FALSE(seeds.empty());
+      solver::LinkRestorer restorer;
+      restorer.init(m);
+      std::vector<std::uint8_t> moved(static_cast<std::size_t>(grid.count), 0);
+      restorer.restore(m, grid, seeds, acc, wall, moved, st);
+      EXPECT_EQ(pos[static_cast<std::size_t>(m.index(gx, 0, 0))].x, g) << "a FIXED element moved";
+      const float v = max_link_violation(m, pos);
+      worst = std::max(worst, v);
+      EXPECT_LE(v, solver::kRestoreTolerance) << "slope " << slope << ", g = " << g;
+    }
+  }
+  EXPECT_GT(cases, 100);
+  std::printf("%d chains: largest link violation after restoration %.3g\n", cases, worst);
 }
