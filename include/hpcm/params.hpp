@@ -45,8 +45,8 @@ inline constexpr float kDeadZonePerThreshold = 2.0f;
 struct DynamicsParams {
   DampingMode mode = DampingMode::Viscoelastic;
   float alpha = 0.98f;                       ///< simple damping, [0, 1]
-  float b0 = 0.025f;                         ///< viscoelastic constant term, [0, 1]
-  PerTissue b1{0.0f, 0.2f, 0.2f, 0.2f};          ///< viscoelastic displacement term, [0, 1]; air 0
+  float b0 = 0.035f;                         ///< viscoelastic constant term, [0, 1]
+  PerTissue b1{0.0f, 0.15f, 0.15f, 0.15f};       ///< viscoelastic displacement term, [0, 1]; air 0
   PerTissue inverse_mass{1.0f, 1.0f, 0.15f, 0.0f};  ///< >= 0, at least one > 0
   float s_min = 0.0f, s_max = 1.0f;          ///< response-scale clamp, 0 <= s_min <= s_max <= 1
   float dead_zone = 0.06f;                   ///< [0, 1) lattice units; at least kDeadZonePerThreshold * relax_threshold

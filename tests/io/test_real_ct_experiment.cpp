@@ -35,23 +35,17 @@ struct KnownFailure {
 };
 // abdomen_f2 (61×50×56) is below 64 along its two longest axes: its motion checks are not
 // applicable (SPEC §8), so its former failure (B turning once) is no longer listed.
-// SPEC §8.8 (local response) measured with the relaxation as it is (issue #30 changes it): the
-// pull spreads far from the grab through the tissue, so muscle&organ moves nearly as much as
-// skin&fat, a large part of each class's AUC is farther than 40 lattice units, and A keeps
-// moving after release. Bounds about a quarter beyond the measured figure (in the comments).
-constexpr const char* kSpread =
-    "the relaxation spreads the pull far from the grab (SPEC §8.8 not met yet; issue #30)";
+// SPEC §8.8 (local response) is the abdomen CT's at f = 1, where it holds with every other check.
+// On the DICOM series (a 10-slice slab at f = 2, pulled 1.66 units) it is reported: no tissue
+// farther than 40 units moves, but skin&fat moves 8-10 times muscle&organ (not 10) and A's
+// return is 16 % of C's motion (not below 10 %). Bounds about a quarter beyond the measured
+// figure (in the comments).
+constexpr const char* kSlab =
+    "SPEC §8.8 is required on the abdomen CT at f = 1; on the 10-slice DICOM slab it is reported (docs/tuning.md)";
 constexpr KnownFailure kKnownFailures[] = {
-    {"abdomen_f1", "C_skin_muscle_peak_ratio", 1.55, 10.0, kSpread},      // 2.095
-    {"abdomen_f1", "C_skin_muscle_auc_ratio", 1.2, 10.0, kSpread},        // 1.622
-    {"abdomen_f1", "C_far_field_share_skin_fat", 0.1, 0.5, kSpread},      // 0.404
-    {"abdomen_f1", "C_far_field_share_muscle_organ", 0.1, 0.98, kSpread}, // 0.782
-    {"abdomen_f1", "A_skin_auc_below_C", 0.1, 0.47, kSpread},             // 0.376
-    {"dicom_f2", "C_skin_muscle_peak_ratio", 4.0, 10.0, kSpread},         // 5.305
-    {"dicom_f2", "C_skin_muscle_auc_ratio", 1.8, 10.0, kSpread},          // 2.390
-    {"dicom_f2", "C_far_field_share_skin_fat", 0.1, 0.16, kSpread},       // 0.127
-    {"dicom_f2", "C_far_field_share_muscle_organ", 0.1, 0.41, kSpread},   // 0.331
-    {"dicom_f2", "A_skin_auc_below_C", 0.1, 0.5, kSpread},                // 0.402
+    {"dicom_f2", "C_skin_muscle_peak_ratio", 7.3, 10.0, kSlab},  // 9.68
+    {"dicom_f2", "C_skin_muscle_auc_ratio", 6.4, 10.0, kSlab},   // 8.47
+    {"dicom_f2", "A_skin_auc_below_C", 0.1, 0.21, kSlab},        // 0.163
 };
 const KnownFailure* known_failure(const std::string& ct, const std::string& check) {
   for (const auto& k : kKnownFailures)

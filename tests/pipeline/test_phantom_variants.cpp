@@ -45,32 +45,27 @@ struct KnownFailure {
 constexpr const char* kBodyOnly =
     "counting the body only (SPEC §3), skin&fat's mean (skin, subcutaneous and still visceral fat) falls below "
     "muscle&organ's (the two-element wall moving with the skin); the pushed outside air no longer counts";
+// The thin-tissue phantom: the tool, limited by the bone under 2 elements of tissue, moves only
+// 0.0206 cells, less than the relaxation's threshold (0.03): after release nothing moves in A, B
+// or C (each class's mean speed is 0 or 1.4e-6 in one frame), so there is no motion to compare.
+constexpr const char* kBelowThreshold =
+    "the tool moves only 0.0206 cells, below the relaxation threshold 0.03: after release nothing moves in A, B or C";
 constexpr KnownFailure kKnownFailures[] = {
-    {PhantomVariant::ThinTissue, 64, "A_no_overshoot", 0.0, 0.0025,
-     "the tool moves only 0.02 cells; in the first frame after release over-relaxation carries the grab centre "
-     "1.8e-3 cells past rest (8.5 % of the pull)"},
-    {PhantomVariant::Table, 64, "C_hierarchy_auc", -0.105, 0.0, kBodyOnly},            // -0.0818
-    {PhantomVariant::Standard, 64, "C_hierarchy_auc", -0.035, 0.0, kBodyOnly},         // -0.0275
-    {PhantomVariant::Standard, 64, "A_no_overshoot", 0.0, 1.4e-4,
-     "four frames after release over-relaxation moves the grab centre away from rest by 1.08e-4 cells (measured "
-     "before the body was counted alone too: it does not depend on the statistics)"},
-    {PhantomVariant::Standard, 64, "C_hierarchy_peak", -0.0005, 0.0, kBodyOnly},       // -0.000252
+    {PhantomVariant::ThinTissue, 64, "C_peak_below_B", 0.0, 2e-6, kBelowThreshold},  // 1.38e-6 = B's
+    {PhantomVariant::ThinTissue, 64, "C_auc_below_B", 0.0, 2e-6, kBelowThreshold},   // 1.38e-6 = B's
+    {PhantomVariant::ThinTissue, 64, "C_hierarchy_initial", 0.0, 0.0, kBelowThreshold},
+    {PhantomVariant::ThinTissue, 64, "C_hierarchy_peak", 0.0, 0.0, kBelowThreshold},
+    {PhantomVariant::ThinTissue, 64, "C_hierarchy_auc", 0.0, 0.0, kBelowThreshold},
+    {PhantomVariant::ThinTissue, 64, "A_skin_auc_below_C", 0.0, 1.0, kBelowThreshold},  // 1: A = C
     // SPEC §8.8 is the abdomen CT's local response. On the 64 phantoms muscle&organ is mostly the
-    // thin abdominal wall that moves with the skin, so the skin / muscle ratios are near 1 (thin
-    // tissue: ~6-8), and A's skin&fat keeps moving after release for a large part of C's AUC
-    // (measured; the cause is not analysed yet). Figures as measured, at settle 1 (they do not
-    // depend on the settle frames).
-    {PhantomVariant::Standard, 64, "C_skin_muscle_peak_ratio", 0.75, 10.0, kBodyOnly},  // 0.998
-    {PhantomVariant::Standard, 64, "C_skin_muscle_auc_ratio", 0.74, 10.0, kBodyOnly},   // 0.985
-    {PhantomVariant::Standard, 64, "A_skin_auc_below_C", 0.0, 0.73, "A's skin&fat AUC after release is 59 % of C's"},
-    {PhantomVariant::Table, 64, "C_skin_muscle_peak_ratio", 0.76, 10.0, kBodyOnly},     // 1.009
-    {PhantomVariant::Table, 64, "C_skin_muscle_auc_ratio", 0.72, 10.0, kBodyOnly},      // 0.954
-    {PhantomVariant::Table, 64, "A_skin_auc_below_C", 0.0, 0.76, "A's skin&fat AUC after release is 61 % of C's"},
-    {PhantomVariant::ThinTissue, 64, "C_skin_muscle_peak_ratio", 5.9, 10.0,
-     "the tool moves only 0.02 cells; skin&fat's Peak is 7.9 times muscle&organ's"},
-    {PhantomVariant::ThinTissue, 64, "C_skin_muscle_auc_ratio", 4.3, 10.0,
-     "the tool moves only 0.02 cells; skin&fat's AUC is 5.7 times muscle&organ's"},
-    {PhantomVariant::ThinTissue, 64, "A_skin_auc_below_C", 0.0, 0.32, "A's skin&fat AUC after release is 25 % of C's"},
+    // thin abdominal wall that moves with the skin, so the skin / muscle ratios are about 1.5, and
+    // A's return after release is about a quarter of C's motion. Reported, not required (docs/tuning.md).
+    {PhantomVariant::Standard, 64, "C_skin_muscle_peak_ratio", 1.2, 10.0, kBodyOnly},  // 1.578
+    {PhantomVariant::Standard, 64, "C_skin_muscle_auc_ratio", 1.15, 10.0, kBodyOnly},  // 1.518
+    {PhantomVariant::Standard, 64, "A_skin_auc_below_C", 0.0, 0.33, "A's skin&fat AUC after release is 26 % of C's"},
+    {PhantomVariant::Table, 64, "C_skin_muscle_peak_ratio", 1.2, 10.0, kBodyOnly},     // 1.586
+    {PhantomVariant::Table, 64, "C_skin_muscle_auc_ratio", 1.15, 10.0, kBodyOnly},     // 1.525
+    {PhantomVariant::Table, 64, "A_skin_auc_below_C", 0.0, 0.33, "A's skin&fat AUC after release is 26 % of C's"},
 };
 const KnownFailure* known_failure(PhantomVariant v, int nx, const std::string& check) {
   for (const auto& k : kKnownFailures)
@@ -121,7 +116,10 @@ TEST_P(PhantomVariantExperiment, ChecksHoldWithDefaults) {
       } else if (c.spec == "8.2") {
         EXPECT_LT(r.conditions[c.name[0] == 'B' ? 1 : 2].max_achieved_offset, kMinSwingPull) << c.name;
       } else {
-        EXPECT_EQ(c.name, "C_far_field_share_bone") << c.name << ": " << c.reason;
+        // A class that did not move after release has no far-field share (bone, anchored; any
+        // class when nothing moves, as on thin tissue).
+        EXPECT_EQ(c.name.rfind("C_far_field_share_", 0), 0u) << c.name << ": " << c.reason;
+        EXPECT_NE(c.reason.find("did not move after release"), std::string::npos) << c.name << ": " << c.reason;
       }
       EXPECT_TRUE(known_failure(vc.variant, vc.dims.x, c.name) == nullptr) << c.name << " is listed as a known failure";
       continue;
