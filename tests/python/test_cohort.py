@@ -322,3 +322,23 @@ def test_options_out_of_range_are_refused_before_anything_runs(tmp_path, option)
     with pytest.raises(cohort.CohortError, match=r"must be an integer in \[1, "):
         cohort.run(["phantom:24,24,16"], tmp_path / "out", hpcm_exe=HPCM, progress=False, **option)
     assert not (tmp_path / "out").exists()
+
+
+def test_an_existing_dask_cluster_runs_the_same_cohort(tmp_path):
+    """--scheduler ADDRESS: the cohort runs unchanged on a cluster it did not start (here a
+    LocalCluster of one worker process started by the test) and writes the same figures."""
+    from distributed import Client, LocalCluster
+    inputs = ["phantom:32,32,20", "phantom:32,32,20:air-pockets"]
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        with Client(cluster) as client:
+            pids = set(client.run(os.getpid).values())
+        table = cohort.run(inputs, tmp_path / "remote", hpcm_exe=HPCM, scheduler=cluster.scheduler_address,
+                           settle_frames=SETTLE, progress=False)
+    # Every case ran in that cluster's worker process (the record names host:pid).
+    assert {int(w.rsplit(":", 1)[1]) for w in table["worker"]} <= pids, (list(table["worker"]), pids)
+    local = cohort.run(inputs, tmp_path / "local", hpcm_exe=HPCM, workers=1, settle_frames=SETTLE, progress=False)
+    assert list(table["status"]) == ["done", "done"]
+    figures = [c for c in table.columns if c.startswith(("A_", "B_", "C_")) and "time" not in c and "_ms" not in c]
+    assert figures, "no figure columns in cohort.csv"
+    pd.testing.assert_frame_equal(table.sort_values("case")[figures].reset_index(drop=True),
+                                  local.sort_values("case")[figures].reset_index(drop=True))
