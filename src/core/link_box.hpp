@@ -25,18 +25,19 @@ HPCM_HD inline void link_interval(const Vec3& pn, const LinkLimits& L, int a, in
   }
 }
 
+/// How far one coordinate difference of a link (its + end minus its - end) lies outside the
+/// box on that axis: [min_d, max_d] along the link (`axial`), |d| <= shear across it (0 inside).
+HPCM_HD inline float link_axis_excess(float d, const LinkLimits& L, bool axial) {
+  if (axial) return d < L.min_d ? L.min_d - d : (d > L.max_d ? d - L.max_d : 0.0f);
+  const float ad = d < 0 ? -d : d;
+  return ad > L.shear ? ad - L.shear : 0.0f;
+}
+
 /// How far the link (lo_elem at p_lo, hi_elem = lo_elem + unit_a at p_hi) is outside its box.
 HPCM_HD inline float link_violation(const Vec3& p_lo, const Vec3& p_hi, const LinkLimits& L, int a) {
   float v = 0.0f;
   for (int b = 0; b < 3; ++b) {
-    const float d = p_hi[b] - p_lo[b];
-    float e;
-    if (b == a) {
-      e = d < L.min_d ? L.min_d - d : (d > L.max_d ? d - L.max_d : 0.0f);
-    } else {
-      const float ad = d < 0 ? -d : d;
-      e = ad > L.shear ? ad - L.shear : 0.0f;
-    }
+    const float e = link_axis_excess(p_hi[b] - p_lo[b], L, b == a);
     v = e > v ? e : v;
   }
   return v;

@@ -165,9 +165,7 @@ void check_damping_settles(const DynamicsParams& d) {
   m << ": the motion would never come to rest (too little damping; stability rule, docs/parameters.md)";
   throw Error(m.str());
 }
-}  // namespace
 
-namespace {
 // The relaxation skips corrections below solver.relax_threshold, so it moves an element either
 // not at all or by at least the threshold: for the velocity layer that is a relay, an impulse of
 // about the threshold each time an element leaves its dead band, whatever its speed, and it keeps

@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <limits>
 
+#include "pipeline/format_number.hpp"
+
 namespace hpcm {
 
 const char* check_status_name(CheckStatus s) {
@@ -191,11 +193,7 @@ bool motion_check(const Check& c) {
   return c.spec == "8.1" || c.spec == "8.2" || c.spec == "8.3" || c.spec == "8.4" || c.spec == "8.8";
 }
 
-std::string figure(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.3g", v);
-  return buf;
-}
+std::string figure(double v) { return detail::format_number(v, "%.3g"); }
 
 /// a / b as a check figure: +inf when b is 0 and a is not (written as JSON null), 0 when both are.
 double ratio(double a, double b) {

@@ -4,14 +4,12 @@
 #include <cmath>
 #include <cstdio>
 
+#include "pipeline/format_number.hpp"
+
 namespace hpcm {
 
 namespace {
-std::string number(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%g", v);
-  return buf;
-}
+std::string number(double v) { return detail::format_number(v); }
 }  // namespace
 
 Scenario Scenario::paper_protocol(float distance, int pull, int hold, int record) {

@@ -11,14 +11,12 @@
 
 #include "solver/tool_limit.hpp"
 
+#include "pipeline/format_number.hpp"
+
 namespace hpcm {
 
 namespace {
-std::string fmt_number(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%g", v);
-  return buf;
-}
+std::string fmt_number(double v) { return detail::format_number(v); }
 }  // namespace
 
 void check_grab_radius(float radius, const std::string& what) {

@@ -49,13 +49,7 @@ HPCM_HD inline bool link_holds(float x, float cn, const LinkLimits& L, int a, in
 /// How far coordinate x of element e on axis b lies outside the interval its link to neighbour n
 /// (coordinate cn on that axis) allows, by the same float arithmetic as link_violation (0 inside).
 HPCM_HD inline float link_excess(float x, float cn, const LinkLimits& L, int a, int side, int b) {
-  if (b != a) {
-    const float d = x - cn;
-    const float ad = d < 0 ? -d : d;
-    return ad > L.shear ? ad - L.shear : 0.0f;
-  }
-  const float d = side > 0 ? x - cn : cn - x;  // the link's + end minus its - end
-  return d < L.min_d ? L.min_d - d : (d > L.max_d ? d - L.max_d : 0.0f);
+  return link_axis_excess(side > 0 ? x - cn : cn - x, L, b == a);  // the link's + end minus its - end
 }
 
 /// Whether a pass leaves the link between e (coordinate x) and n (cn) as the stage placed it:
