@@ -7,7 +7,7 @@ would copy it, at a small size, so that no documented command can rot unnoticed:
     Python module on PYTHONPATH and HPCM_EXE set to the built CLI.
 Small size: phantom lattices become 24x24x16 (also `phantom:NX,NY,NZ` cohort inputs and the
 Python example's default), CT inputs are read with --downsample 4 (or more where the command
-asks for more), --bench-drag runs 2 s and `...` in a synopsis-like line becomes a short run.
+asks for more), the viewer plays at most 20 frames and --bench-drag runs 2 s, and `...` in a synopsis-like line becomes a short run.
 Each command must exit 0 and leave what it names (--out, --export, --screenshot, a redirected
 file). What cannot run here is listed with the reason (`not run`): the viewer's interactive
 commands, installers (pip, apt-get, sudo), other tools (plastimatch), the two top-level
@@ -41,9 +41,12 @@ INPUTS = {
 }
 # Files the docs' commands take as the user's own, written before the first command.
 SWEEP_TOML = '[grid]\n"dynamics.alpha" = [0.8, 0.95]\n'
+SCENARIO_TOML = ('[scenario]\nname = "short"\nframes = 30\n\n[[grab]]\ncentre = "auto"\nrelease = 10\n'
+                 'keyframes = [[5, 0.0, -2.0, 0.0]]\n')
 SMALL_PHANTOM = "24,24,16"
 SMALL_DOWNSAMPLE = 4
 SMALL_BENCH_DRAG = "2"
+SMALL_VIEWER_FRAMES = 20
 # `hpcm run --params my_params.toml ...`: the elided options of a synopsis line.
 ELLIPSIS_ARGS = ["--phantom", SMALL_PHANTOM, "--frames", "10", "--out", "ellipsis_run"]
 # Whole programs the test does not run, with the reason it says.
@@ -113,6 +116,8 @@ def small(argv):
             reads_input = True
         if a == "--bench-drag":
             argv[i + 1] = SMALL_BENCH_DRAG
+        if a == "--frames" and argv[0].endswith("xvfb-run") and argv[i + 1].isdigit():
+            argv[i + 1] = str(min(int(argv[i + 1]), SMALL_VIEWER_FRAMES))
     for i, a in enumerate(argv):
         m = re.fullmatch(r"phantom:[0-9]+,[0-9]+,[0-9]+(:.*)?", a)
         if m:
@@ -160,7 +165,7 @@ def prepare(scratch, data, hpcm):
     with open(os.path.join(scratch, "my.toml"), "w") as f:
         subprocess.run([hpcm, "params", "--defaults"], stdout=f, check=True)
     with open(os.path.join(scratch, "scenario.toml"), "w") as f:
-        subprocess.run([hpcm, "params", "--scenario-paper"], stdout=f, check=True)
+        f.write(SCENARIO_TOML)
     with open(os.path.join(scratch, "sweep.toml"), "w") as f:
         f.write(SWEEP_TOML)
     return have_data
