@@ -1,7 +1,7 @@
 // Sleeping bricks (solver.sleep, dynamics.sleep_speed): the paper protocol with sleeping and
 // with every brick kept awake (the exact reference) stays within 1e-3 lattice units per element
-// on every frame (measured: at most 3e-6), sleeping really stops the work once the tissue is still, and the behaviour
-// checks hold with every brick awake too.
+// on every frame (measured: at most 3e-6), sleeping really stops the work once the tissue is
+// still, and the behaviour checks hold with every brick awake too.
 #include <gtest/gtest.h>
 
 #include <map>
