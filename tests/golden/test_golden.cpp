@@ -258,9 +258,13 @@ void play(const GoldenRun& run, const Model& m, const Config& c, Table& out) {
       if (out.rows.empty()) out.header.push_back(name);
       row.push_back(value);
     }
-    for (const FieldHash& f : state_digest(sim)) {
-      if (out.rows.empty()) out.header.push_back("state_" + f.field + "_fnv1a");
-      row.push_back(hashed ? hex(f.hash) : "-");
+    if (hashed || out.rows.empty()) {  // the first frame names the columns
+      for (const FieldHash& f : state_digest(sim)) {
+        if (out.rows.empty()) out.header.push_back("state_" + f.field + "_fnv1a");
+        row.push_back(hashed ? hex(f.hash) : "-");
+      }
+    } else {
+      row.resize(out.header.size(), "-");
     }
     out.rows.push_back(std::move(row));
   }
