@@ -307,6 +307,8 @@ struct Stored {
 };
 
 void write_golden(const std::string& path, const GoldenRun& run, const Config& c, const Table& t) {
+  std::error_code ec;
+  std::filesystem::create_directories(std::filesystem::path(path).parent_path(), ec);
   std::ofstream f(path);
   ASSERT_TRUE(f) << path << ": cannot open for writing";
   f << "# hpcm golden states: " << run.name << " (tests/golden/test_golden.cpp; regenerate: scripts/regenerate_golden.sh)\n"
