@@ -164,13 +164,13 @@ std::vector<GoldenRun> runs() {
     const char* abc = mode == DampingMode::None ? "A" : mode == DampingMode::Simple ? "B" : "C";
     r.push_back({std::string("phantom48_paper60_") + abc,
                  std::string("phantom 48x48x32 (seed 1), ") + kPaper60 + ", dynamics " + damping_mode_name(mode),
-                 phantom48, with_mode(mode), paper60, false, false});
+                 phantom48, with_mode(mode), paper60, false, false, ""});
   }
   r.push_back({"random_grabs",
                "random heterogeneous lattice 24x20x16 (tests/cuda/parity_suite.hpp random_model, seed 21), "
                "3 random grabs (random_scenario, seed 4) over 90 frames, dynamics viscoelastic",
                [](const Params& p) { return cudatest::random_model({24, 20, 16}, 21, p); }, Params{},
-               [](const Model& m) { return cudatest::random_scenario(m, 4, 3, 90); }});
+               [](const Model& m) { return cudatest::random_scenario(m, 4, 3, 90); }, true, true, ""});
 #ifdef HPCM_GOLDEN_HAVE_IO
   r.push_back({"abdomen_f4",
                "abdomen CT (../shared/data/abdomen-ct/abdomen_ct.nii.gz) down-sampled by 4, " + std::string(kPaper60) +
