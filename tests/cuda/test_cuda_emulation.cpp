@@ -2,7 +2,8 @@
 // sequential host emulation of src/cuda/emulation.hpp, against the CPU backend. This runs
 // everywhere (no GPU needed): it checks the GPU schedule (single-block bucketed propagation,
 // brick lists, red-black relaxation, fused velocity layer, reductions) and the compact link
-// layout; test_cuda_parity.cpp runs the same suite on a real device.
+// layout; test_cuda_parity.cpp runs the same suite on a real device. The emulation must give
+// the CPU backend's states bitwise (kEmulationTol): both are compiled without FMA contraction.
 #include <omp.h>
 
 #include "cuda/emulation.hpp"
@@ -50,13 +51,13 @@ TEST(CudaEmulation, DeviceUsesTheModelsLinkTable) {
   m.link_table.push_back(limits_from_tau(tau, m.link(1, 5).w));
   m.link_index[1][5] = static_cast<std::uint16_t>(m.link_table.size() - 1);
   const auto dev = [] { return std::make_unique<gpu::DeviceBackend<gpu::EmuExec>>(); };
-  check_waves([&] { return dev(); }, m, with_mode(p, DampingMode::Viscoelastic), 11, 4, "edited link");
+  check_waves([&] { return dev(); }, m, with_mode(p, DampingMode::Viscoelastic), 11, 4, "edited link", kEmulationTol);
 }
 
 TEST(CudaEmulation, WavesOnThePhantom) {
   const Params p;
   const Model m = phantom_model({28, 28, 14}, p);
-  check_waves(emulated(), m, with_mode(p, DampingMode::Viscoelastic), 1, 6, "phantom 28x28x14");
+  check_waves(emulated(), m, with_mode(p, DampingMode::Viscoelastic), 1, 6, "phantom 28x28x14", kEmulationTol);
 }
 
 TEST(CudaEmulation, WavesOnRandomLattices) {
@@ -66,7 +67,7 @@ TEST(CudaEmulation, WavesOnRandomLattices) {
     p.solver.relax_omega = seed == 2 ? 1.0f : 1.5f;  // plain Gauss-Seidel and over-relaxation
     const Model m = random_model({19, 17, 13}, seed, p);
     check_waves(emulated(seed == 2 ? 1 : 4), m, with_mode(p, DampingMode::Simple), seed * 31, 6,
-                "random lattice seed " + std::to_string(seed));
+                "random lattice seed " + std::to_string(seed), kEmulationTol);
   }
 }
 
@@ -80,7 +81,7 @@ TEST(CudaEmulation, PropagationListsGrowOnOverflow) {
     b->set_initial_list_capacity(8, 2);
     return std::unique_ptr<Backend>(std::move(b));
   };
-  check_waves(tiny, m, with_mode(p, DampingMode::Viscoelastic), 1, 4, "tiny initial lists");
+  check_waves(tiny, m, with_mode(p, DampingMode::Viscoelastic), 1, 4, "tiny initial lists", kEmulationTol);
   // The same waves, counting the reruns.
   gpu::DeviceBackend<gpu::EmuExec> b;
   b.set_initial_list_capacity(8, 2);
@@ -102,7 +103,7 @@ TEST(CudaEmulation, StiffUniformLatticeDecidesABucketAgain) {
   Params p;
   p.material.points = {{-1000.0f, 0.01f, 0.3f}, {1000.0f, 0.01f, 0.3f}};
   const Model m = phantom_model({40, 40, 12}, p);
-  check_waves(emulated(), m, with_mode(p, DampingMode::None), 9, 3, "stiff uniform lattice");
+  check_waves(emulated(), m, with_mode(p, DampingMode::None), 9, 3, "stiff uniform lattice", kEmulationTol);
 }
 
 TEST(CudaEmulation, LinkRestoration) {
@@ -116,7 +117,7 @@ TEST(CudaEmulation, PipelinePaperProtocolABC) {
   const Model m = phantom_model({24, 24, 12}, p);
   for (DampingMode mode : {DampingMode::None, DampingMode::Simple, DampingMode::Viscoelastic})
     check_pipeline(emulated(), m, with_mode(p, mode), Scenario::paper_protocol(), 200,
-                   std::string("phantom, paper protocol, ") + damping_mode_name(mode));
+                   std::string("phantom, paper protocol, ") + damping_mode_name(mode), kEmulationTol);
 }
 
 TEST(CudaEmulation, PipelineRandomGrabsABC) {
@@ -125,7 +126,7 @@ TEST(CudaEmulation, PipelineRandomGrabsABC) {
   const Scenario sc = random_scenario(m, 4, 3, 200);
   for (DampingMode mode : {DampingMode::None, DampingMode::Simple, DampingMode::Viscoelastic})
     check_pipeline(emulated(2), m, with_mode(p, mode), sc, 200,
-                   std::string("random lattice, random grabs, ") + damping_mode_name(mode));
+                   std::string("random lattice, random grabs, ") + damping_mode_name(mode), kEmulationTol);
 }
 
 }  // namespace

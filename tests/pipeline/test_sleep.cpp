@@ -1,7 +1,7 @@
 // Sleeping bricks (solver.sleep, dynamics.sleep_speed): the paper protocol with sleeping and
-// with every brick kept awake (the exact reference) stays within 1e-2 lattice units per element
-// on every frame, sleeping really stops the work once the tissue is still, and the behaviour
-// checks hold with every brick awake too.
+// with every brick kept awake (the exact reference) stays within 1e-3 lattice units per element
+// on every frame (measured: at most 3e-6), sleeping really stops the work once the tissue is
+// still, and the behaviour checks hold with every brick awake too.
 #include <gtest/gtest.h>
 
 #include <map>
@@ -33,7 +33,7 @@ float max_diff(const std::vector<Vec3>& a, const std::vector<Vec3>& b) {
 
 }  // namespace
 
-TEST(Sleep, WithinOneHundredthOfTheAwakeReferenceAndComesToRest) {
+TEST(Sleep, WithinOneThousandthOfTheAwakeReferenceAndComesToRest) {
   const Params base;
   ASSERT_TRUE(base.solver.sleep);
   const Model m = phantom({48, 48, 32}, base);
@@ -57,7 +57,7 @@ TEST(Sleep, WithinOneHundredthOfTheAwakeReferenceAndComesToRest) {
     }
     std::printf("%s: max |x_sleep - x_awake| = %.3g over %d frames; %d idle frames with sleeping\n",
                 damping_mode_name(mode), worst, frames, idle_frames);
-    EXPECT_LE(worst, 1e-2f) << damping_mode_name(mode);
+    EXPECT_LE(worst, 1e-3f) << damping_mode_name(mode);
     EXPECT_GT(idle_frames, 0) << damping_mode_name(mode) << ": the still lattice must fall asleep";
     EXPECT_EQ(awake_min, b.model().size()) << "solver.sleep = false keeps every element awake";
   }
@@ -73,7 +73,7 @@ TEST(Sleep, ChecksHoldWithEveryBrickAwake) {
   ExperimentOptions opt;
   opt.settle_frames = 2000;
   const ExperimentResult r = run_experiment(m, p, opt);
-  EXPECT_EQ(r.checks.size(), 33u) << "the paper protocol reports 33 checks";
+  ASSERT_EQ(r.checks.size(), 33u) << "the paper protocol reports 33 checks";
   for (const Check& c : r.checks) {
     if (c.status == CheckStatus::NotApplicable) {
       EXPECT_EQ(c.reason, "lattice 48×48×32 below 64 along its two longest axes") << c.name;
