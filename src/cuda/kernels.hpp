@@ -105,8 +105,8 @@ struct Lattice {
   int nx = 0, ny = 0, nz = 0;
   long long n = 0;
   solver::BrickGrid grid;  ///< brick geometry, shared with the CPU backend
-  Vec3* pos = nullptr;   ///< X (X+ after ChainMail)
-  Vec3* pre = nullptr;   ///< X- (pre-ChainMail snapshot; equal to X between frames)
+  Vec3* pos = nullptr;   ///< u = X - X0, displacements from rest (u+ after ChainMail)
+  Vec3* pre = nullptr;   ///< u- (pre-ChainMail snapshot; equal to u between frames)
   Vec3* vel = nullptr;   ///< V
   float* time = nullptr;
   std::uint8_t* flags = nullptr;  ///< ElementFlags | internal bits; 4-byte aligned, padded
@@ -238,7 +238,7 @@ struct PropArgs {
   Vec3* sp = nullptr;
   int list_cap = 0;
   double delta = 1.0;   ///< bucket width (smallest link w), as ChainMailCpu
-  solver::Wall wall;    ///< boundary box of every clamp
+  solver::Wall wall;    ///< boundary box of every clamp (lattice coordinates; per element: solver::element_wall)
   int max_sweeps = 0;
   PropCtl* ctl = nullptr;
 };
@@ -370,7 +370,7 @@ HPCM_HD void propagate_block(const PropArgs& a, PropShared& sh, B& blk) {
             L.coords(e, x, y, z);
             solver::Neighbour nb[6];
             const int c = gather(L, x, y, z, e, nb);
-            propagate_in_bucket(e, L.pre[e], nb, c, k, a.delta, a.wall, a.st[j], a.sp[j]);
+            propagate_in_bucket(e, L.pre[e], nb, c, k, a.delta, solver::element_wall(a.wall, x, y, z), a.st[j], a.sp[j]);
             if (!(a.st[j] == L.time[e]) || !(a.sp[j] == L.pos[e])) sh.any = 1;
           }
         });
@@ -495,7 +495,7 @@ struct RelaxArgs {
   std::uint8_t* phase[3] = {nullptr, nullptr, nullptr};       ///< per brick: changed in phase p (ring, p % 3)
   float threshold = 1e-4f;
   float omega = 1.0f;   ///< over-relaxation factor (SolverParams::relax_omega)
-  solver::Wall wall;    ///< boundary box of every clamp
+  solver::Wall wall;    ///< boundary box of every clamp (lattice coordinates; per element: solver::element_wall)
   int sweeps = 0;
 };
 
@@ -575,7 +575,7 @@ HPCM_HD void relax_colour_block(const RelaxArgs& a, int p, RelaxShared& sh, B& b
         const int c = gather(L, x, y, z, i, nb);
         if (c == 0) continue;
         const Vec3 cur = L.pos[i];
-        const Vec3 p = solver::relax_element(nb, c, cur, a.omega, a.wall);
+        const Vec3 p = solver::relax_element(nb, c, cur, a.omega, solver::element_wall(a.wall, x, y, z));
         const Vec3 d = p - cur;
         const float corr = sqrtf(d.x * d.x + d.y * d.y + d.z * d.z);
         if (!(corr >= a.threshold) || corr == 0.0f) continue;  // small corrections are skipped
@@ -657,7 +657,7 @@ HPCM_HD void check_links_block(const CheckArgs& a, long long b, B& blk) {
       const long long e = L.index(c[0], c[1], c[2]);
       const Vec3 pe = L.pos[e];
       for (int ax = 0; ax < 3; ++ax) {
-        const float below = a.wall.lo[ax] - pe[ax], above = pe[ax] - a.wall.hi[ax];
+        const float below = solver::wall_lo_of(a.wall, ax, c[ax]) - pe[ax], above = pe[ax] - solver::wall_hi_of(a.wall, ax, c[ax]);
         if ((below < above ? above : below) > solver::kRestoreTolerance) found = true;
         if (c[ax] + 1 >= d[ax]) continue;
         const long long n = e + stride[ax];
