@@ -94,7 +94,7 @@ class DeviceBackend final : public Backend {
 
     const std::size_t N = static_cast<std::size_t>(n), NB = static_cast<std::size_t>(L_.grid.count);
     const std::size_t N4 = (N + 3) / 4 * 4;
-    L_.pos = alloc<Vec3>(N, "positions");
+    L_.disp = alloc<Vec3>(N, "positions");
     L_.pre = alloc<Vec3>(N, "pre-ChainMail snapshot");
     L_.vel = alloc<Vec3>(N, "velocities");
     L_.time = alloc<float>(N, "arrival times");
@@ -140,7 +140,7 @@ class DeviceBackend final : public Backend {
     for (int a = 0; a < 3; ++a)
       x_.upload(const_cast<std::uint16_t*>(L_.link_index[a]), m.link_index[a].data(), N * sizeof(std::uint16_t));
     x_.upload(const_cast<LinkLimits*>(L_.link_table), m.link_table.data(), m.link_table.size() * sizeof(LinkLimits));
-    x_.upload(L_.pos, s.disp.data(), N * sizeof(Vec3));
+    x_.upload(L_.disp, s.disp.data(), N * sizeof(Vec3));
     x_.upload(L_.pre, s.disp.data(), N * sizeof(Vec3));  // invariant between frames: u- == u
     x_.upload(L_.vel, s.vel.data(), N * sizeof(Vec3));
     std::fill(buf.begin(), buf.end(), solver::kInf);  // a new wave starts from scratch
@@ -437,7 +437,7 @@ class DeviceBackend final : public Backend {
     s.vel.resize(N);
     s.time.resize(N);
     s.flags.resize(N);
-    x_.download(s.disp.data(), L_.pos, N * sizeof(Vec3));
+    x_.download(s.disp.data(), L_.disp, N * sizeof(Vec3));
     x_.download(s.vel.data(), L_.vel, N * sizeof(Vec3));
     x_.download(s.time.data(), L_.time, N * sizeof(float));
     x_.download(s.flags.data(), L_.flags, N);
@@ -446,13 +446,13 @@ class DeviceBackend final : public Backend {
   }
   void download_displacements(std::vector<Vec3>& disp) override {
     disp.resize(static_cast<std::size_t>(L_.n));
-    x_.download(disp.data(), L_.pos, disp.size() * sizeof(Vec3));
+    x_.download(disp.data(), L_.disp, disp.size() * sizeof(Vec3));
     x_.sync();
   }
   Vec3 displacement(Index i) override {
     if (i < 0 || i >= L_.n) throw Error("displacement: element " + std::to_string(i) + " is out of range");
     Vec3 v;
-    x_.download(&v, L_.pos + i, sizeof(Vec3));
+    x_.download(&v, L_.disp + i, sizeof(Vec3));
     x_.sync();
     return v;
   }

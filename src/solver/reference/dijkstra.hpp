@@ -27,7 +27,7 @@ namespace hpcm::reference {
 inline constexpr float kInf = std::numeric_limits<float>::infinity();
 
 struct ReferenceWave {
-  std::vector<Vec3> pos;    ///< positions after the wave
+  std::vector<Vec3> pos;    ///< displacements from rest after the wave
   std::vector<float> time;  ///< arrival times: 0 for FIXED, +inf where the wave did not move e
   Index reached = 0;        ///< non-FIXED elements with a finite time
 };
