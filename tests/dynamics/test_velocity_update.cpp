@@ -399,3 +399,20 @@ TEST(BoundaryClamp, PositionsClampedVelocityKept) {
   Vec3 v0{};
   EXPECT_EQ(update_abs(K(p), kSkin, false, pre, post, pre, v0), (Vec3{9.0f, 0.0f, 4.5f}));
 }
+
+// On displacements the wall is the element's own interval [-m - X0, N - 1 + m - X0]: an element
+// at lattice x = 1000 of a 1024-cell axis may move 25 cells (margin 2) toward +x, not more, and
+// the bound is exact (no float step of the coordinate 1000 in it).
+TEST(BoundaryClamp, OnDisplacementsTheBoundsAreTheElementsOwn) {
+  DynamicsParams p = simple_params(0.0f);
+  p.margin = 2.0f;
+  const LayerConstants k = make_constants(p, Int3{1024, 48, 32});
+  const Vec3 rest{1000.0f, 3.0f, 0.0f};
+  Vec3 v{};
+  // u+ = (30, -7, 0.25): beyond the +x wall and below the -y wall.
+  const Vec3 u = dynamics::velocity_update(k, kBone, false, Vec3{}, Vec3{30.0f, -7.0f, 0.25f}, rest, v);
+  EXPECT_EQ(u, (Vec3{25.0f, -5.0f, 0.25f}));
+  // Within the wall nothing is clamped, to the bit: a displacement of a float step at 1e-6.
+  const Vec3 small{1e-6f, -3e-7f, 2e-7f};
+  EXPECT_EQ(dynamics::velocity_update(k, kBone, false, small, small, rest, v), small);
+}
