@@ -67,7 +67,7 @@ bool LinkRestorer::pass(const Model& m, const RestoreAccess& pos, int b, int k, 
   // FIFO work list: an element whose value changes re-queues its neighbours. The pass is a
   // monotone fixed-point iteration, so the visiting order does not change the result. Capped
   // (restore.hpp, kRestoreVisitsPerElement): a pass that reaches the cap stops and says so.
-  const std::size_t cap = static_cast<std::size_t>(kRestoreVisitsPerElement) * static_cast<std::size_t>(m.size());
+  const std::size_t cap = static_cast<std::size_t>(visits_per_element_) * static_cast<std::size_t>(m.size());
   std::size_t head = 0;
   for (; head < queue_.size() && head < cap; ++head) {
     const Index e = queue_[head];

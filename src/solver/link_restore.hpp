@@ -30,6 +30,8 @@ void find_violations(const Model& m, const BrickGrid& grid, const std::vector<In
 class LinkRestorer {
  public:
   void init(const Model& m);
+  /// The cap on each pass, in visits per lattice element (kRestoreVisitsPerElement; tests lower it).
+  void set_visits_per_element(int visits) { visits_per_element_ = visits; }
   /// Restores consistency around `seeds` (ascending, unique linear indices): every link and
   /// the wall, FIXED elements untouched. Bricks whose elements moved are flagged in `moved`;
   /// st.moved counts the elements moved.
@@ -56,6 +58,7 @@ class LinkRestorer {
   std::vector<std::uint32_t> stamp_;
   std::uint32_t epoch_ = 0;
   std::vector<float> val_[2];  ///< coordinate b under the two pass orders
+  int visits_per_element_ = kRestoreVisitsPerElement;
 };
 
 }  // namespace hpcm::solver

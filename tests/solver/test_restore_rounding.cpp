@@ -203,3 +203,37 @@ TEST(RestoreRoundingPull, ChainAtTheToolLimitWithALinkTheStageLeftWithinTheToler
   EXPECT_GT(cases, 100);
   std::printf("%d chains: largest link violation after restoration %.3g\n", cases, worst);
 }
+
+// Every restoration pass is capped (kRestoreVisitsPerElement visits per lattice element) and a
+// pass that reaches its cap says so (RestoreStats::capped, FrameReport::restore_converged). The
+// scattered bar needs a few visits per element: with the default cap it finishes, with a cap of
+// one visit per element a pass stops early and is reported; either way restore() returns.
+TEST(RestoreCap, APassThatReachesItsCapStopsAndSaysSo) {
+  const Model m = build_model(test::make_volume({64, 2, 2}, [](int x, int, int) { return x % 7 < 3 ? 50.0f : -100.0f; }), Params{});
+  solver::BrickGrid grid;
+  grid.init(m.dims, 8);
+  const solver::Wall wall = solver::make_wall(m.dims, 2.0f);
+  for (int cap : {solver::kRestoreVisitsPerElement, 1}) {
+    std::mt19937 rng(4);
+    std::uniform_real_distribution<float> jitter(-0.4f, 0.4f);
+    std::vector<Vec3> pos(static_cast<std::size_t>(m.size()));
+    std::vector<Index> seeds;
+    for (Index i = 0; i < m.size(); ++i) {
+      for (int b = 0; b < 3; ++b) pos[static_cast<std::size_t>(i)][b] = jitter(rng);
+      seeds.push_back(i);
+    }
+    VectorAccess acc(pos);
+    solver::LinkRestorer restorer;
+    restorer.init(m);
+    restorer.set_visits_per_element(cap);
+    std::vector<std::uint8_t> moved(static_cast<std::size_t>(grid.count), 0);
+    RestoreStats st;
+    restorer.restore(m, grid, seeds, acc, wall, moved, st);
+    if (cap == 1) {
+      EXPECT_TRUE(st.capped) << "one visit per element cannot restore a lattice scattered everywhere";
+    } else {
+      EXPECT_FALSE(st.capped);
+      EXPECT_LE(max_link_violation(m, pos), solver::kRestoreTolerance);
+    }
+  }
+}
