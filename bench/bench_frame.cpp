@@ -62,7 +62,7 @@ const Setup& setup() {
     }
     st->state19 = sim.state();
     st->grabbed = sim.grabbed();
-    for (Index i : st->grabbed) st->targets.push_back(st->model.rest(i) + Vec3{0.0f, -kPullDistance, 0.0f});
+    for (Index i : st->grabbed) st->targets.push_back(Vec3{0.0f, -kPullDistance, 0.0f});
     st->flags.assign(st->grabbed.size(), kGrabbed);
     for (Index i : st->grabbed) st->state19.flags[i] = 0;
 
@@ -73,8 +73,8 @@ const Setup& setup() {
     be->snapshot();
     st->reached_parallel = be->propagate().reached;
     std::vector<Vec3> par;
-    be->download_positions(par);
-    std::vector<Vec3> dj = st->state19.pos, gb = st->state19.pos;
+    be->download_displacements(par);
+    std::vector<Vec3> dj = st->state19.disp, gb = st->state19.disp;
     reference::DijkstraPropagator d(st->model);
     st->reached_dijkstra = d.run(dj, st->grabbed, st->targets);
     reference::GibsonChainMail g(st->model);
@@ -164,7 +164,7 @@ void BM_Gibson_Propagate(benchmark::State& state) {
   Index moved = 0;
   for (auto _ : state) {
     state.PauseTiming();
-    pos = s.state19.pos;
+    pos = s.state19.disp;
     state.ResumeTiming();
     moved = g.run(pos, s.grabbed, s.targets);
     benchmark::DoNotOptimize(pos.data());
@@ -181,7 +181,7 @@ void BM_Dijkstra_Propagate(benchmark::State& state) {
   Index reached = 0;
   for (auto _ : state) {
     state.PauseTiming();
-    pos = s.state19.pos;
+    pos = s.state19.disp;
     state.ResumeTiming();
     reached = d.run(pos, s.grabbed, s.targets);
     benchmark::DoNotOptimize(pos.data());

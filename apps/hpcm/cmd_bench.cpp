@@ -112,8 +112,8 @@ ConditionTiming run_condition(const Model& model, Params p, DampingMode mode, Ba
     }
     const FrameReport r = player.done() ? sim->step(so) : player.step(so);
     if (awake) {  // untimed: both states downloaded and compared
-      const std::vector<Vec3>& xs = sim->state().pos;
-      const std::vector<Vec3>& xa = awake->state().pos;
+      const std::vector<Vec3>& xs = sim->state().disp;
+      const std::vector<Vec3>& xa = awake->state().disp;
       for (std::size_t i = 0; i < xs.size(); ++i) c.max_awake_diff = std::max(c.max_awake_diff, norm(xs[i] - xa[i]));
     }
     c.frames.push_back(r);

@@ -215,8 +215,8 @@ void register_experiment(CLI::App& app) {
       jc["limited_pulls"] = nlohmann::json::array();
       for (const LimitedPull& lp : c.limited_pulls) jc["limited_pulls"].push_back(limited_pull_json(lp, m));
       nlohmann::json track = nlohmann::json::array();
-      for (std::size_t f = 0; f < c.centre_track.size(); ++f) {
-        const Vec3 d = c.centre_track[f] - c.centre_rest;
+      for (std::size_t f = 0; f < c.centre_displacement.size(); ++f) {
+        const Vec3 d = c.centre_displacement[f];
         for (float x : {d.x, d.y, d.z}) require_finite(x, cond + " grab centre displacement");
         track.push_back({d.x, d.y, d.z});
       }

@@ -106,7 +106,7 @@ nlohmann::json export_json(const io::Input& in, const io::ExportFiles& f, const 
 void ExportSession::write_frame(const std::string& tag, int frames_done, bool final_export) {
 #if defined(HPCM_WITH_ITK)
   const io::ExportFiles f =
-      io::export_frame(input_, sim_.model(), sim_.state().pos, o_.export_dir, tag, final_export, warp_labels_);
+      io::export_frame(input_, sim_.model(), sim_.state().disp, o_.export_dir, tag, final_export, warp_labels_);
   const std::string shown = o_.export_shown.empty() ? o_.export_dir : o_.export_shown;
   for (const std::string& p : io::export_problems(f)) {
     std::fprintf(stderr, "hpcm: warning: export %s (frame %d) in %s: %s\n", tag.c_str(), frames_done - 1, shown.c_str(),

@@ -106,7 +106,7 @@ void SimRunner::grab(Index centre, float radius) {
           tool_ = {};
           tool_.centre = centre;
           tool_.held = tool_.shown = true;
-          tool_.origin = sim_->position(centre);
+          tool_.origin = sim_->model().rest(centre) + sim_->displacement(centre);
           tool_.radius = radius > 0 ? radius : sim_->params().solver.grab_radius;
           limit_ = {};
         }});
@@ -402,7 +402,7 @@ void SimRunner::track_tool() {
       tool_ = {};
       tool_.centre = c;
       tool_.held = true;
-      tool_.origin = sim_->position(c) - sim_->tool_offset();
+      tool_.origin = sim_->model().rest(c) + sim_->displacement(c) - sim_->tool_offset();
       tool_.radius = sim_->params().solver.grab_radius;
       if (player_ && scenario_)
         for (std::size_t k = 0; k < scenario_->grabs.size(); ++k)
@@ -447,7 +447,10 @@ void SimRunner::publish(bool stepped) {
   // run/pause publish the same buffer again instead of downloading 12 bytes per element.
   if (stepped || positions_dirty_ || !last_pos_) {
     auto buf = acquire_buffer();
-    sim_->backend().download_positions(*buf);
+    // The views draw positions X0 + u (float is enough for pixels).
+    sim_->backend().download_displacements(*buf);
+    const Model& m = sim_->model();
+    for (Index i = 0; i < m.size(); ++i) (*buf)[static_cast<std::size_t>(i)] = m.rest(i) + (*buf)[static_cast<std::size_t>(i)];
     last_prev_ = stepped ? last_pos_ : last_prev_;
     last_pos_ = std::move(buf);
     ++positions_id_;

@@ -35,11 +35,12 @@ class Backend {
   virtual ~Backend() = default;
   virtual BackendKind kind() const = 0;
 
-  /// Uploads the model, params and a state (positions, velocities, flags are taken from it).
+  /// Uploads the model, params and a state (displacements, velocities, flags are taken from it).
   virtual void load(const Model& m, const Params& p, const State& s) = 0;
   /// Parameter change that keeps the model (dynamics, relaxation settings).
   virtual void set_params(const Params& p) = 0;
-  /// The FIXED set for this frame (grab + anchors) with targets; all others are released.
+  /// The FIXED set for this frame (grab + anchors) with targets (displacements from rest); all
+  /// others are released.
   virtual void set_fixed(const std::vector<Index>& elements, const std::vector<Vec3>& targets,
                          const std::vector<std::uint8_t>& flags) = 0;
 
@@ -77,8 +78,9 @@ class Backend {
   virtual int threads() const { return 0; }
 
   virtual void download(State& s) = 0;
-  virtual void download_positions(std::vector<Vec3>& pos) = 0;
-  virtual Vec3 position(Index i) = 0;
+  /// Displacements from rest u = X - X0 (State::disp), linear order.
+  virtual void download_displacements(std::vector<Vec3>& disp) = 0;
+  virtual Vec3 displacement(Index i) = 0;
 };
 
 }  // namespace hpcm

@@ -19,7 +19,7 @@ struct ConditionResult {
   DampingMode mode = DampingMode::None;
   std::string label;                      ///< "A", "B", "C"
   std::vector<FrameReport> frames;        ///< every frame of the scenario
-  std::vector<Vec3> centre_track;         ///< grab-centre position at the end of each frame
+  std::vector<Vec3> centre_displacement;  ///< grab-centre displacement from rest at the end of each frame
   Vec3 centre_rest{};                     ///< its rest position
   PerTissue initial{}, peak{}, auc{};     ///< Table 2 over the recorded frames after release
   double chainmail_ms = 0, inertia_ms = 0, snapshot_ms = 0, sim_total_ms = 0;  ///< means per frame
@@ -53,7 +53,7 @@ class FarFieldSplit {
  public:
   static constexpr float kDefaultDistance = 40.0f;
   FarFieldSplit(const Model& model, Index centre, float distance = kDefaultDistance);
-  /// One frame: positions at the end of the previous frame and of this one (model-sized).
+  /// One frame: displacements at the end of the previous frame and of this one (model-sized).
   void add_frame(const std::vector<Vec3>& before, const std::vector<Vec3>& after);
   const TissueSums& far_sum() const { return far_; }
   const TissueSums& total_sum() const { return total_; }

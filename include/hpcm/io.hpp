@@ -163,10 +163,10 @@ void write_volume(const Volume& v, const std::string& path);
 /// Forward displacement u = X - X0 of every element in millimetres (LPS components), on
 /// `in.lattice_grid` in the input's index order, as a 3-component float vector image (.nii,
 /// .nii.gz, .nrrd, .mha). NRRD files carry `displacement field type: modeling`.
-void write_displacement_field(const Input& in, const Model& m, const std::vector<Vec3>& pos, const std::string& path);
+void write_displacement_field(const Input& in, const Model& m, const std::vector<Vec3>& disp, const std::string& path);
 /// The displacement in millimetres as written by write_displacement_field: 3 floats per voxel
 /// of `in.lattice_grid` (interleaved, first index fastest).
-std::vector<float> displacement_on_input_grid(const Input& in, const Model& m, const std::vector<Vec3>& pos);
+std::vector<float> displacement_on_input_grid(const Input& in, const Model& m, const std::vector<Vec3>& disp);
 /// Label of the elements outside the body (SPEC §3) in write_label_map.
 inline constexpr unsigned char kOutsideLabel = 4;
 /// Tissue class label map (uint8: 0 air .. 3 bone for the body's elements, kOutsideLabel = 4
@@ -206,10 +206,10 @@ inline constexpr double kInverseMappingToleranceMm = 0.01;
 
 /// Deformed CT on the grid of `in.stored` (the input cropped to the ROI, never down-sampled),
 /// by inverse mapping; voxels whose rest position lies outside the input are air.
-InverseMappingStats write_deformed_volume(const Input& in, const Model& m, const std::vector<Vec3>& pos,
+InverseMappingStats write_deformed_volume(const Input& in, const Model& m, const std::vector<Vec3>& disp,
                                           const std::string& path);
 /// Deformed CT on the grid of `target` (any grid: its index order and geometry).
-InverseMappingStats write_deformed_volume(const Volume& target, const Model& m, const std::vector<Vec3>& pos,
+InverseMappingStats write_deformed_volume(const Volume& target, const Model& m, const std::vector<Vec3>& disp,
                                           const std::string& path);
 
 /// An integer label map (a segmentation: organ masks, a multi-label map) as stored: its grid and
@@ -245,7 +245,7 @@ struct DeformedOnInputGrid {
 /// One inverse mapping (fixed point, then Newton) per output voxel of `in.stored`'s grid, and
 /// every export that follows it: the deformed CT, the pull-back field, the deformed class labels
 /// and each of `labels` (each must be on in.stored's grid: label_map_on_input_grid).
-DeformedOnInputGrid deform_on_input_grid(const Input& in, const Model& m, const std::vector<Vec3>& pos,
+DeformedOnInputGrid deform_on_input_grid(const Input& in, const Model& m, const std::vector<Vec3>& disp,
                                          const std::vector<LabelMap>& labels = {});
 /// Writes a pull-back field (pullback_mm of deform_on_input_grid) on `g` as a 3-component float
 /// vector image; NRRD files carry `displacement field type: resampling`.
@@ -280,9 +280,9 @@ struct ExportFiles {
 };
 /// Writes the displacement field (NIfTI, and NRRD when `nrrd_field`), and through one inverse
 /// mapping the deformed CT, the pull-back field (NIfTI, and NRRD when `nrrd_field`), the deformed
-/// class labels and each of `labels` warped, for the positions `pos` into folder `dir`, tagged
+/// class labels and each of `labels` warped, for the displacements `disp` into folder `dir`, tagged
 /// `tag` ("final", "0020", ...), and checks them. `labels`: label_map_on_input_grid of each.
-ExportFiles export_frame(const Input& in, const Model& m, const std::vector<Vec3>& pos, const std::string& dir,
+ExportFiles export_frame(const Input& in, const Model& m, const std::vector<Vec3>& disp, const std::string& dir,
                          const std::string& tag, bool nrrd_field, const std::vector<LabelMap>& labels = {});
 /// What is wrong with an export, one sentence per problem naming the file and the figures;
 /// empty when the export is clean.

@@ -14,9 +14,12 @@ struct MaterialPoint {
   friend bool operator==(const MaterialPoint&, const MaterialPoint&) = default;
 };
 
-/// Box limits of one link (Gibson): axial spacing in [min_d, max_d], |shear| <= shear.
+/// Box limits of one link (Gibson), as limits on the difference of its ends' displacements from
+/// rest (u = X - X0): axial stretch u_hi - u_lo (the spacing minus 1) in [min_stretch,
+/// max_stretch], |shear| <= shear across the link. Stretches rather than spacings: the solver
+/// works on displacements (docs/solver.md, "Displacements from rest").
 struct LinkLimits {
-  float min_d, max_d, shear, w;
+  float min_stretch, max_stretch, shear, w;
 };
 
 /// Shear limit of a link of tolerance tau: tau (SPEC §3), capped where tau > 0.35 (air) so
@@ -29,8 +32,9 @@ HPCM_HD inline float shear_limit(float tau) {
   return tau < cap ? tau : cap;
 }
 
+/// Spacing in [1 - 0.8 tau, 1 + tau] (SPEC §3): stretch in [-0.8 tau, tau].
 HPCM_HD inline LinkLimits limits_from_tau(float tau, float w) {
-  return {1.0f - 0.8f * tau, 1.0f + tau, shear_limit(tau), w};
+  return {-(0.8f * tau), tau, shear_limit(tau), w};
 }
 
 /// Range of the link time penalty w. The propagation's time buckets are w_min wide; arrival

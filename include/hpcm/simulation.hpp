@@ -32,6 +32,7 @@ struct FrameReport {
   Index folded_cells = -1;        ///< cells with a corner determinant <= 0 at frame end; -1 when not measured
   int propagate_sweeps = 0, relax_sweeps = 0;
   bool propagate_converged = true;
+  bool restore_converged = true;  ///< false when a restoration pass reached its cap (links may stay outside)
   double chainmail_ms = 0, inertia_ms = 0, snapshot_ms = 0, sim_total_ms = 0;
   PerTissue mean_speed{}, max_speed{};  ///< |X_end(t) - X_end(t-1)| per class, over the body's elements (SPEC §3)
 };
@@ -96,13 +97,16 @@ class Simulation {
 
   /// One frame of the pipeline.
   FrameReport step(const StepOptions& opt = {});
-  /// Back to rest (X = X0, V = 0), grab released, frame counter 0.
+  /// Back to rest (u = 0, V = 0), grab released, frame counter 0.
   void reset();
   int frame() const { return frame_; }
 
   /// Full state (downloaded from the backend when it changed).
   const State& state();
-  Vec3 position(Index i) { return backend_->position(i); }
+  /// Displacement from rest u = X - X0 of element i (lattice units).
+  Vec3 displacement(Index i) { return backend_->displacement(i); }
+  /// Position X0 + u of element i, in double.
+  Point3 position(Index i) { return position_of(model_, i, backend_->displacement(i)); }
   /// Direct access to the backend (it may change positions: the cached metrics are dropped).
   Backend& backend() {
     ++positions_version_;

@@ -1,5 +1,5 @@
 #pragma once
-// Mutable per-element state: positions, velocities, arrival times, flags (SPEC §2).
+// Mutable per-element state: displacements, velocities, arrival times, flags (SPEC §2).
 #include <cstdint>
 #include <vector>
 
@@ -14,17 +14,33 @@ enum ElementFlags : std::uint8_t {
 };
 
 struct State {
-  std::vector<Vec3> pos;            ///< X, lattice units (frame-end positions)
+  /// u = X - X0, lattice units: frame-end displacements from rest (X0: the element's lattice
+  /// index). Stored instead of X so that the float step of a displacement does not depend on
+  /// where the element sits (docs/solver.md, "Displacements from rest"); positions() gives X.
+  std::vector<Vec3> disp;
   std::vector<Vec3> vel;            ///< V, lattice units per frame (persists between frames)
   std::vector<float> time;          ///< arrival time of the last wave (+inf: not reached)
   std::vector<std::uint8_t> flags;  ///< ElementFlags
 
-  /// Rest state: X = X0, V = 0, t = +inf, no flags.
+  /// Rest state: u = 0, V = 0, t = +inf, no flags.
   static State rest(const Model& m);
 };
 
-/// Largest violation of any link box over the whole lattice (0 when consistent).
-float max_link_violation(const Model& m, const std::vector<Vec3>& pos);
+/// Position X = X0 + u of element i, in double (exact for every float displacement).
+struct Point3 {
+  double x = 0, y = 0, z = 0;
+  double operator[](int a) const { return a == 0 ? x : (a == 1 ? y : z); }
+};
+inline Point3 position_of(const Model& m, Index i, Vec3 u) {
+  const Int3 c = m.coords(i);
+  return {c.x + static_cast<double>(u.x), c.y + static_cast<double>(u.y), c.z + static_cast<double>(u.z)};
+}
+/// Every element's position X0 + u (double).
+std::vector<Point3> positions(const Model& m, const std::vector<Vec3>& disp);
+
+/// Largest violation of any link box over the whole lattice (0 when consistent), from the
+/// displacements (link differences 1 + u_hi - u_lo, the same floats as the solver's check).
+float max_link_violation(const Model& m, const std::vector<Vec3>& disp);
 
 /// Fold check of a deformed lattice. Every cell (8 neighbouring elements) is a trilinear
 /// hexahedron; at each of its 8 corners the determinant of the three edge vectors leaving the
@@ -35,6 +51,7 @@ struct CellJacobianStats {
   Index folded = 0;    ///< cells with a corner determinant <= 0
   Index cells = 0;     ///< cells checked
 };
-CellJacobianStats cell_jacobian(const Model& m, const std::vector<Vec3>& pos);
+/// From the displacements: edges unit_a + (u_next - u), in double.
+CellJacobianStats cell_jacobian(const Model& m, const std::vector<Vec3>& disp);
 
 }  // namespace hpcm

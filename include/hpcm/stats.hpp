@@ -22,6 +22,7 @@ struct RestoreStats {
   Index violated_links = 0;     ///< links found outside their box (beyond the tolerance) before restoring
   float max_violation = 0;      ///< the largest of those violations, lattice units
   Index moved = 0;              ///< elements the restoration moved
+  bool capped = false;          ///< a pass reached its cap (solver::kRestoreVisitsPerElement) and stopped early
 };
 
 /// Per-tissue speed reduction of one frame: speed = |X_end(t) - X_end(t-1)|.

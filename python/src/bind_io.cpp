@@ -37,7 +37,7 @@ py::dict grid_dict(const io::Grid& g) {
 }
 
 // Called in the simulation's turn (SimulationTurn): another thread may be stepping it.
-const std::vector<Vec3>& positions_of(Simulation& sim) { return sim.state().pos; }
+const std::vector<Vec3>& displacements_of(Simulation& sim) { return sim.state().disp; }
 
 /// A label map's values as a numpy array of its own integer type, indexed [x, y, z] in the
 /// file's own index order (no copy: the array owns the moved map).
@@ -144,7 +144,7 @@ order: {"axis", "reversed"}: LPS axis p runs along stored axis axis[p], backward
         std::vector<float> u;
         {
           py::gil_scoped_release release;
-          u = io::displacement_on_input_grid(in, sim.model(), positions_of(sim));
+          u = io::displacement_on_input_grid(in, sim.model(), displacements_of(sim));
         }
         return lattice_array(std::move(u), in.lattice_grid.dims, 3);
       }, py::arg("input"), py::arg("simulation"),
@@ -153,7 +153,7 @@ order: {"axis", "reversed"}: LPS axis p runs along stored axis axis[p], backward
   m.def("write_displacement_field", [](const io::Input& in, GuardedSimulation& sim, const std::filesystem::path& path) {
         SimulationTurn turn(sim);
         py::gil_scoped_release release;
-        io::write_displacement_field(in, sim.model(), positions_of(sim), path.string());
+        io::write_displacement_field(in, sim.model(), displacements_of(sim), path.string());
       }, py::arg("input"), py::arg("simulation"), py::arg("path"), "Writes displacement_mm(input, simulation) to `path` (.nii, .nii.gz, .nrrd, .mha by its extension).");
   m.def("write_label_map", [](const io::Input& in, GuardedSimulation& sim, const std::filesystem::path& path) {
         SimulationTurn turn(sim);
@@ -163,7 +163,7 @@ order: {"axis", "reversed"}: LPS axis p runs along stored axis axis[p], backward
   m.def("write_deformed_volume", [](const io::Input& in, GuardedSimulation& sim, const std::filesystem::path& path) {
         SimulationTurn turn(sim);
         py::gil_scoped_release release;
-        io::write_deformed_volume(in, sim.model(), positions_of(sim), path.string());
+        io::write_deformed_volume(in, sim.model(), displacements_of(sim), path.string());
       }, py::arg("input"), py::arg("simulation"), py::arg("path"), "Writes the deformed CT on input.stored's grid to `path` by inverse mapping (air where the rest position lies outside).");
   m.def("export_frame", [](const io::Input& in, GuardedSimulation& sim, const std::filesystem::path& folder,
                            const std::string& tag, bool nrrd_field) {
@@ -171,7 +171,7 @@ order: {"axis", "reversed"}: LPS axis p runs along stored axis axis[p], backward
         io::ExportFiles f;
         {
           py::gil_scoped_release release;
-          f = io::export_frame(in, sim.model(), positions_of(sim), folder.string(), tag, nrrd_field);
+          f = io::export_frame(in, sim.model(), displacements_of(sim), folder.string(), tag, nrrd_field);
         }
         py::dict d;
         d["displacement_nifti"] = f.displacement_nifti;
@@ -210,7 +210,7 @@ order: {"axis", "reversed"}: LPS axis p runs along stored axis axis[p], backward
         io::DeformedOnInputGrid d;
         {
           py::gil_scoped_release release;
-          d = io::deform_on_input_grid(in, sim.model(), positions_of(sim), {map});
+          d = io::deform_on_input_grid(in, sim.model(), displacements_of(sim), {map});
           if (path) io::write_label_values(d.labels[0], path->string());
         }
         return label_array(std::move(d.labels[0]));
@@ -225,7 +225,7 @@ order: {"axis", "reversed"}: LPS axis p runs along stored axis axis[p], backward
         io::DeformedOnInputGrid d;
         {
           py::gil_scoped_release release;
-          d = io::deform_on_input_grid(in, sim.model(), positions_of(sim));
+          d = io::deform_on_input_grid(in, sim.model(), displacements_of(sim));
         }
         return lattice_array(std::move(d.pullback_mm), d.grid.dims, 3);
       }, py::arg("input"), py::arg("simulation"),

@@ -38,6 +38,7 @@ void for_each_frame_report_field(Visit&& v) {
   v("propagate_sweeps", &FrameReport::propagate_sweeps, "propagation sweeps this frame");
   v("relax_sweeps", &FrameReport::relax_sweeps, "relaxation sweeps this frame");
   v("propagate_converged", &FrameReport::propagate_converged, "False when the propagation sweep cap was hit");
+  v("restore_converged", &FrameReport::restore_converged, "False when a link-restoration pass hit its cap");
   v("chainmail_ms", &FrameReport::chainmail_ms, "ChainMail stage time (propagate + relax), ms");
   v("inertia_ms", &FrameReport::inertia_ms, "velocity layer time, ms");
   v("snapshot_ms", &FrameReport::snapshot_ms, "buffer copies, ms");
@@ -244,11 +245,18 @@ py::dict condition_dict(const ConditionResult& c) {
   }
   d["limited_pulls"] = limited;
   d["centre_rest"] = vec3_tuple(c.centre_rest);
-  std::vector<Vec3> track = c.centre_track;
-  const auto n = static_cast<py::ssize_t>(track.size());
-  py::array_t<float> t({n, py::ssize_t{3}});
-  std::memcpy(t.mutable_data(), track.data(), track.size() * sizeof(Vec3));
+  // Positions X0 + u in double (the track), and the displacements themselves.
+  const auto n = static_cast<py::ssize_t>(c.centre_displacement.size());
+  py::array_t<double> t({n, py::ssize_t{3}});
+  py::array_t<float> u({n, py::ssize_t{3}});
+  for (py::ssize_t f = 0; f < n; ++f)
+    for (int a = 0; a < 3; ++a) {
+      const float ua = c.centre_displacement[static_cast<std::size_t>(f)][a];
+      t.mutable_at(f, a) = static_cast<double>(c.centre_rest[a]) + ua;
+      u.mutable_at(f, a) = ua;
+    }
   d["centre_track"] = t;
+  d["centre_displacement"] = u;
   d["frames"] = report_columns(c.frames);
   return d;
 }
@@ -340,10 +348,10 @@ void bind_simulation(py::module_& m) {
   });
 
   py::class_<StateSnapshot>(m, "State", "A copy of the simulation state; its arrays are views of this copy.")
-      .def_property_readonly("positions", [](py::object self) {
+      .def_property_readonly("displacements", [](py::object self) {
             auto& s = self.cast<StateSnapshot&>();
-            return lattice_view(reinterpret_cast<const float*>(s.state.pos.data()), s.dims, 3, self);
-          }, "X, lattice units, (nx, ny, nz, 3) float32")
+            return lattice_view(reinterpret_cast<const float*>(s.state.disp.data()), s.dims, 3, self);
+          }, "u = X - X0, lattice units, (nx, ny, nz, 3) float32: what the solver stores")
       .def_property_readonly("velocities", [](py::object self) {
             auto& s = self.cast<StateSnapshot&>();
             return lattice_view(reinterpret_cast<const float*>(s.state.vel.data()), s.dims, 3, self);
@@ -485,17 +493,16 @@ Several threads may call one Simulation: the calls run one at a time.)")
           "with KeyboardInterrupt; the frames done stay done.")
       .def("reset", in_turn(+[](Simulation& s) { s.reset(); }), "Back to rest (X = X0, V = 0), grab released, frame 0.")
       .def("positions", in_turn(+[](Simulation& s) {
-            std::vector<Vec3> pos;
-            s.backend().download_positions(pos);
-            return vec3_array(std::move(pos), s.model().dims);
-          }), "X in lattice units, (nx, ny, nz, 3) float32: one copy out of the backend, owned by the array")
+            std::vector<Vec3> disp;
+            s.backend().download_displacements(disp);
+            return point3_array(s.model(), disp);
+          }), "X = X0 + u in lattice units, (nx, ny, nz, 3) float64 (exact: computed in double from the displacements)")
       .def("displacement", in_turn(+[](Simulation& s) {
-            std::vector<Vec3> pos;
-            s.backend().download_positions(pos);
-            const Model& mdl = s.model();
-            for (Index i = 0; i < mdl.size(); ++i) pos[static_cast<std::size_t>(i)] = pos[static_cast<std::size_t>(i)] - mdl.rest(i);
-            return vec3_array(std::move(pos), mdl.dims);
-          }), "X - X0 in lattice units, (nx, ny, nz, 3) float32 (see displacement_mm for millimetres)")
+            std::vector<Vec3> disp;
+            s.backend().download_displacements(disp);
+            return vec3_array(std::move(disp), s.model().dims);
+          }), "u = X - X0 in lattice units, (nx, ny, nz, 3) float32: what the solver stores, one copy out of the "
+              "backend (see displacement_mm for millimetres)")
       .def("state", in_turn(+[](Simulation& s) {
             auto snap = std::make_unique<StateSnapshot>();
             s.backend().download(snap->state);

@@ -134,6 +134,15 @@ inline py::array vec3_array(std::vector<Vec3>&& v, Int3 dims) {
   return py::array(py::dtype::of<float>(), shape, strides, reinterpret_cast<const float*>(owned->data()), free_when_done);
 }
 
+/// Positions X0 + u (double, exact) of displacements `disp` as a (nx, ny, nz, 3) float64 array.
+inline py::array point3_array(const Model& m, const std::vector<Vec3>& disp) {
+  auto* owned = new std::vector<Point3>(positions(m, disp));
+  py::capsule free_when_done(owned, [](void* p) { delete static_cast<std::vector<Point3>*>(p); });
+  std::vector<py::ssize_t> shape, strides;
+  lattice_layout<double>(m.dims, 3, shape, strides);
+  return py::array(py::dtype::of<double>(), shape, strides, reinterpret_cast<const double*>(owned->data()), free_when_done);
+}
+
 inline py::tuple int3_tuple(Int3 v) { return py::make_tuple(v.x, v.y, v.z); }
 inline py::tuple vec3_tuple(Vec3 v) { return py::make_tuple(v.x, v.y, v.z); }
 /// 3x3 row-major -> numpy (3, 3) (a copy).

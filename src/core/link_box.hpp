@@ -7,17 +7,23 @@
 
 namespace hpcm {
 
-/// Interval on axis b allowed for element e by neighbour n at position pn, where the link
-/// lies along axis a and side = +1 if e = n + unit_a at rest, -1 if e = n - unit_a.
-HPCM_HD inline void link_interval(const Vec3& pn, const LinkLimits& L, int a, int side, int b, float& lo, float& hi) {
-  const float c = pn[b];
+// Everything here works on displacements from rest, u = X - X0 (lattice units): a link from n to
+// e = n + unit_a is in its box when u_e[a] - u_n[a] lies in [min_stretch, max_stretch] and
+// |u_e[b] - u_n[b]| <= shear across it. Displacements stay small wherever the element sits, so
+// their float step (and every rounding of these limits) does not grow with the lattice.
+
+/// Interval on axis b allowed for the displacement of element e by neighbour n (displacement
+/// un), where the link lies along axis a and side = +1 if e = n + unit_a at rest, -1 if
+/// e = n - unit_a.
+HPCM_HD inline void link_interval(const Vec3& un, const LinkLimits& L, int a, int side, int b, float& lo, float& hi) {
+  const float c = un[b];
   if (b == a) {
     if (side > 0) {
-      lo = c + L.min_d;
-      hi = c + L.max_d;
+      lo = c + L.min_stretch;
+      hi = c + L.max_stretch;
     } else {
-      lo = c - L.max_d;
-      hi = c - L.min_d;
+      lo = c - L.max_stretch;
+      hi = c - L.min_stretch;
     }
   } else {
     lo = c - L.shear;
@@ -25,19 +31,21 @@ HPCM_HD inline void link_interval(const Vec3& pn, const LinkLimits& L, int a, in
   }
 }
 
-/// How far one coordinate difference of a link (its + end minus its - end) lies outside the
-/// box on that axis: [min_d, max_d] along the link (`axial`), |d| <= shear across it (0 inside).
+/// How far one displacement difference of a link (its + end minus its - end) lies outside the
+/// box on that axis: [min_stretch, max_stretch] along the link (`axial`), |d| <= shear across it
+/// (0 inside).
 HPCM_HD inline float link_axis_excess(float d, const LinkLimits& L, bool axial) {
-  if (axial) return d < L.min_d ? L.min_d - d : (d > L.max_d ? d - L.max_d : 0.0f);
+  if (axial) return d < L.min_stretch ? L.min_stretch - d : (d > L.max_stretch ? d - L.max_stretch : 0.0f);
   const float ad = d < 0 ? -d : d;
   return ad > L.shear ? ad - L.shear : 0.0f;
 }
 
-/// How far the link (lo_elem at p_lo, hi_elem = lo_elem + unit_a at p_hi) is outside its box.
-HPCM_HD inline float link_violation(const Vec3& p_lo, const Vec3& p_hi, const LinkLimits& L, int a) {
+/// How far the link (lo_elem with displacement u_lo, hi_elem = lo_elem + unit_a with u_hi) is
+/// outside its box.
+HPCM_HD inline float link_violation(const Vec3& u_lo, const Vec3& u_hi, const LinkLimits& L, int a) {
   float v = 0.0f;
   for (int b = 0; b < 3; ++b) {
-    const float e = link_axis_excess(p_hi[b] - p_lo[b], L, b == a);
+    const float e = link_axis_excess(u_hi[b] - u_lo[b], L, b == a);
     v = e > v ? e : v;
   }
   return v;

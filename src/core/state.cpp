@@ -1,6 +1,7 @@
 #include "hpcm/state.hpp"
 
 #include <algorithm>
+#include <array>
 #include <limits>
 
 #include "core/link_box.hpp"
@@ -11,15 +12,20 @@ namespace hpcm {
 State State::rest(const Model& m) {
   State s;
   const Index n = m.size();
-  s.pos.resize(static_cast<std::size_t>(n));
-  for (Index i = 0; i < n; ++i) s.pos[i] = m.rest(i);
+  s.disp.assign(static_cast<std::size_t>(n), Vec3{});
   s.vel.assign(static_cast<std::size_t>(n), Vec3{});
   s.time.assign(static_cast<std::size_t>(n), std::numeric_limits<float>::infinity());
   s.flags.assign(static_cast<std::size_t>(n), 0);
   return s;
 }
 
-float max_link_violation(const Model& m, const std::vector<Vec3>& pos) {
+std::vector<Point3> positions(const Model& m, const std::vector<Vec3>& disp) {
+  std::vector<Point3> out(disp.size());
+  for (Index i = 0; i < static_cast<Index>(disp.size()); ++i) out[static_cast<std::size_t>(i)] = position_of(m, i, disp[static_cast<std::size_t>(i)]);
+  return out;
+}
+
+float max_link_violation(const Model& m, const std::vector<Vec3>& disp) {
   const int nx = m.dims.x, ny = m.dims.y, nz = m.dims.z;
   const Index stride[3] = {1, nx, static_cast<Index>(nx) * ny};
   const int parts = pass_parts(nz);
@@ -33,14 +39,14 @@ float max_link_violation(const Model& m, const std::vector<Vec3>& pos) {
           const int c[3] = {x, y, z};
           const int d[3] = {nx, ny, nz};
           for (int a = 0; a < 3; ++a)
-            if (c[a] + 1 < d[a]) w = std::max(w, link_violation(pos[i], pos[i + stride[a]], m.link(a, i), a));
+            if (c[a] + 1 < d[a]) w = std::max(w, link_violation(disp[i], disp[i + stride[a]], m.link(a, i), a));
         }
     worst[static_cast<std::size_t>(part)] = w;
   });
   return *std::max_element(worst.begin(), worst.end());
 }
 
-CellJacobianStats cell_jacobian(const Model& m, const std::vector<Vec3>& pos) {
+CellJacobianStats cell_jacobian(const Model& m, const std::vector<Vec3>& disp) {
   CellJacobianStats st;
   const int nx = m.dims.x, ny = m.dims.y, nz = m.dims.z;
   if (nx < 2 || ny < 2 || nz < 2) return st;
@@ -60,14 +66,19 @@ CellJacobianStats cell_jacobian(const Model& m, const std::vector<Vec3>& pos) {
             for (int j = 0; j < 2; ++j)
               for (int i = 0; i < 2; ++i) {
                 const Index c = base + i + j * sy + k * sz;
-                // Edges to the corner's neighbours inside the cell, oriented along +x, +y, +z.
-                const Vec3 p = pos[c];
-                const Vec3 ex = i ? p - pos[c - 1] : pos[c + 1] - p;
-                const Vec3 ey = j ? p - pos[c - sy] : pos[c + sy] - p;
-                const Vec3 ez = k ? p - pos[c - sz] : pos[c + sz] - p;
-                const double det = double(ex.x) * (double(ey.y) * ez.z - double(ey.z) * ez.y) -
-                                   double(ex.y) * (double(ey.x) * ez.z - double(ey.z) * ez.x) +
-                                   double(ex.z) * (double(ey.x) * ez.y - double(ey.y) * ez.x);
+                // Edges to the corner's neighbours inside the cell, oriented along +x, +y, +z:
+                // the unit rest edge plus the difference of the displacements, in double.
+                const Vec3 u = disp[c];
+                auto edge = [](Vec3 du, int a) {
+                  std::array<double, 3> e{du.x, du.y, du.z};
+                  e[a] += 1.0;
+                  return e;
+                };
+                const auto ex = edge(i ? u - disp[c - 1] : disp[c + 1] - u, 0);
+                const auto ey = edge(j ? u - disp[c - sy] : disp[c + sy] - u, 1);
+                const auto ez = edge(k ? u - disp[c - sz] : disp[c + sz] - u, 2);
+                const double det = ex[0] * (ey[1] * ez[2] - ey[2] * ez[1]) - ex[1] * (ey[0] * ez[2] - ey[2] * ez[0]) +
+                                   ex[2] * (ey[0] * ez[1] - ey[1] * ez[0]);
                 cell_min = std::min(cell_min, det);
               }
           min_det = std::min(min_det, cell_min);

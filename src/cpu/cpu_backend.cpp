@@ -10,7 +10,7 @@ namespace {
 class StorageAccess final : public solver::RestoreAccess {
  public:
   explicit StorageAccess(Storage& st) : st_(st) {}
-  Vec3 position(Index i) const override { return st_.position(i); }
+  Vec3 displacement(Index i) const override { return st_.displacement(i); }
   void set_coordinate(Index i, int axis, float value) override { st_.p[axis][static_cast<std::size_t>(st_.lay.at(i))] = value; }
   bool fixed(Index i) const override { return (st_.flags[static_cast<std::size_t>(st_.lay.at(i))] & kFixed) != 0; }
 
@@ -22,7 +22,7 @@ class StorageAccess final : public solver::RestoreAccess {
 
 void CpuBackend::load(const Model& m, const Params& p, const State& s) {
   p.validate();
-  if (static_cast<Index>(s.pos.size()) != m.size() || s.vel.size() != s.pos.size() || s.flags.size() != s.pos.size())
+  if (static_cast<Index>(s.disp.size()) != m.size() || s.vel.size() != s.disp.size() || s.flags.size() != s.disp.size())
     throw Error("CPU backend: state size does not match the model (" + std::to_string(m.size()) + " elements)");
   m_ = &m;
   p_ = p;
@@ -38,7 +38,7 @@ void CpuBackend::load(const Model& m, const Params& p, const State& s) {
   unchecked_.assign(nb, 1);  // a loaded state is checked once
   // Anything that carries velocity or is off rest must be looked at by the first frame.
   for (Index i = 0; i < m.size(); ++i)
-    if (!(s.vel[static_cast<std::size_t>(i)] == Vec3{}) || !(s.pos[static_cast<std::size_t>(i)] == m.rest(i)))
+    if (!(s.vel[static_cast<std::size_t>(i)] == Vec3{}) || !(s.disp[static_cast<std::size_t>(i)] == Vec3{}))
       touched_[static_cast<std::size_t>(grid_.brick_of_index(i))] = 1;
   hot_ = touched_;
   worked_.assign(nb, 0);

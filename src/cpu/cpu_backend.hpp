@@ -40,8 +40,8 @@ class CpuBackend final : public Backend {
   void mark(int slot) override;
   double elapsed_ms(int from_slot, int to_slot) override;
   void download(State& s) override { st_.store_state(s, *pool_); }
-  void download_positions(std::vector<Vec3>& pos) override { st_.store_positions(pos, *pool_); }
-  Vec3 position(Index i) override { return st_.position(i); }
+  void download_displacements(std::vector<Vec3>& disp) override { st_.store_displacements(disp, *pool_); }
+  Vec3 displacement(Index i) override { return st_.displacement(i); }
 
   /// The SIMD kernels in use ("avx512", "avx2" or "sse2").
   std::string kernels() const override { return kernel_name_; }

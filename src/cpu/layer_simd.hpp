@@ -3,7 +3,8 @@
 // simd_*.cpp). Lane by lane these are the floating-point operations of
 // dynamics::velocity_update in the same order, with its branches as lane masks: FIXED,
 // massless or condition A; the dead zone on |dX|; simple or viscoelastic update; the magnitude
-// clamp or the rest threshold; the position step; the boundary clamp. The speeds for the
+// clamp or the rest threshold; the position step; the boundary clamp (on displacements from
+// rest: the element's own bounds, lattice coordinates minus X0). The speeds for the
 // report are then added in element order, so every path gives the same sums.
 #include <cmath>
 
@@ -95,8 +96,7 @@ void layer_row(Storage& st, const dynamics::LayerConstants& k, const LayerRow& r
     } else {  // viscoelastic (C)
       V vt[3];
       for (int a = 0; a < 3; ++a) vt[a] = v[a] + s * dx[a];
-      const V fx = splat<V>(static_cast<float>(r.h)) + splat<V>(2.0f) * (lane + splat<V>(static_cast<float>(j)));
-      const V denom = one_b0 + by_tissue<V>(t, k.b1) * norm3<V>(pre[0] - fx, pre[1] - fy, pre[2] - fz);
+      const V denom = one_b0 + by_tissue<V>(t, k.b1) * norm3<V>(pre[0], pre[1], pre[2]);  // |X- - X0|
       for (int a = 0; a < 3; ++a) nv[a] = vt[a] / denom;
     }
     // 5. magnitude clamp keeping the direction.
@@ -129,11 +129,13 @@ void layer_row(Storage& st, const dynamics::LayerConstants& k, const LayerRow& r
     // 6. position update.
     const V g = beta * by_tissue<V>(t, k.rho);
     V out[3];
+    const V fx = splat<V>(static_cast<float>(r.h)) + splat<V>(2.0f) * (lane + splat<V>(static_cast<float>(j)));
+    const V rest[3] = {fx, fy, fz};
     for (int a = 0; a < 3; ++a) {
       nv[a] = dynamic ? nv[a] : zero;
       const V x = dynamic ? post[a] + g * nv[a] : post[a];
-      // 7. boundary clamp.
-      const V lo = splat<V>(k.lo[a]), hi = splat<V>(k.hi[a]);
+      // 7. boundary clamp, on u: k.lo - X0, k.hi - X0 (dynamics::velocity_update).
+      const V lo = splat<V>(k.lo[a]) - rest[a], hi = splat<V>(k.hi[a]) - rest[a];
       out[a] = x < lo ? lo : (x > hi ? hi : x);
     }
     if (count == N) {

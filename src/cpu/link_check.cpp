@@ -56,7 +56,7 @@ void LinkCheck::run(const Storage& st, const solver::BrickGrid& grid, const std:
       const int c[3] = {x, y, z};
       bool seed_e = false;
       for (int a = 0; a < 3; ++a) {
-        const float outside = std::max(wall.lo[a] - pe[a], pe[a] - wall.hi[a]);
+        const float outside = std::max(solver::wall_lo_of(wall, a, c[a]) - pe[a], pe[a] - solver::wall_hi_of(wall, a, c[a]));
         if (outside > solver::kRestoreTolerance) {
           ++ps.violated_links;
           ps.max_violation = std::max(ps.max_violation, outside);

@@ -11,17 +11,18 @@
 
 namespace hpcm::cpu::simd {
 
-/// Largest violation per lane of the link from p (lower end) to q (upper end) along axis a.
+/// Largest violation per lane of the link from p (lower end) to q (upper end) along axis a
+/// (displacements from rest).
 template <class V>
 inline V link_excess(const V (&p)[3], const V (&q)[3], V tau, int a) {
-  const V one = splat<V>(1.0f), k08 = splat<V>(0.8f);
-  const V min_d = one - k08 * tau, max_d = one + tau;
+  const V k08 = splat<V>(0.8f);
+  const V min_s = -(k08 * tau), max_s = tau;
   const V cap = splat<V>(0.5f) * (splat<V>(0.98f) - k08 * tau);
   const V shear = tau < cap ? tau : cap;
   V v = splat<V>(0.0f);
   for (int b = 0; b < 3; ++b) {
     const V d = q[b] - p[b];
-    const V e = b == a ? vmax(min_d - d, d - max_d) : vmax(d, -d) - shear;
+    const V e = b == a ? vmax(min_s - d, d - max_s) : vmax(d, -d) - shear;
     v = vmax(v, e);
   }
   return v;
@@ -38,13 +39,18 @@ void link_check_row(const Storage& st, const solver::Wall& wall, int h, int y, i
   const Index ko = L.row_start(1 - h, y, z) + (h == 0 ? 0 : 1);  // +x neighbour of j
   const Index sy = L.width[h], sz = L.plane[h];
   const bool has_y = y + 1 < L.dims.y, has_z = z + 1 < L.dims.z;
-  const V wlo[3] = {splat<V>(wall.lo[0]), splat<V>(wall.lo[1]), splat<V>(wall.lo[2])};
-  const V whi[3] = {splat<V>(wall.hi[0]), splat<V>(wall.hi[1]), splat<V>(wall.hi[2])};
+  // The element's wall (solver::element_wall): lane by lane on x, per row on y and z.
+  const V wlo_x = splat<V>(wall.lo[0]), whi_x = splat<V>(wall.hi[0]);
+  const V wlo_yz[2] = {splat<V>(solver::wall_lo_of(wall, 1, y)), splat<V>(solver::wall_lo_of(wall, 2, z))};
+  const V whi_yz[2] = {splat<V>(solver::wall_hi_of(wall, 1, y)), splat<V>(solver::wall_hi_of(wall, 2, z))};
   const V tol = splat<V>(solver::kRestoreTolerance);
   V lane;
   for (int l = 0; l < N; ++l) lane[l] = static_cast<float>(l);
   for (int j = j0; j < j1; j += N) {  // the last vector is masked; its loads may run into the padding
     const Index k = k0 + j;
+    const V x = splat<V>(static_cast<float>(h)) + splat<V>(2.0f) * (lane + splat<V>(static_cast<float>(j)));
+    const V wlo[3] = {wlo_x - x, wlo_yz[0], wlo_yz[1]};
+    const V whi[3] = {whi_x - x, whi_yz[0], whi_yz[1]};
     const V p[3] = {load<V>(st.p[0].data() + k), load<V>(st.p[1].data() + k), load<V>(st.p[2].data() + k)};
     V worst = splat<V>(0.0f);
     for (int b = 0; b < 3; ++b) worst = vmax(worst, vmax(wlo[b] - p[b], p[b] - whi[b]));

@@ -123,7 +123,9 @@ PropagateStats Propagation::run(Storage& st, const std::vector<Index>& fixed, co
               const int cnt = gather(st, e, nb);
               float& t = scratch_t_[static_cast<std::size_t>(j)];
               Vec3& p = scratch_p_[static_cast<std::size_t>(j)];
-              propagate_in_bucket(e, Vec3{st.q[0][k], st.q[1][k], st.q[2][k]}, nb, cnt, kb, delta, wall, t, p);
+              const Int3 c = m.coords(e);
+              propagate_in_bucket(e, Vec3{st.q[0][k], st.q[1][k], st.q[2][k]}, nb, cnt, kb, delta,
+                                  element_wall(wall, c.x, c.y, c.z), t, p);
               if (!(t == st.time[k]) || !(p == Vec3{st.p[0][k], st.p[1][k], st.p[2][k]})) any = 1;
             }
             chunk_any_[static_cast<std::size_t>(ch)] = any;

@@ -23,7 +23,7 @@ class Propagation {
  public:
   void init(const Model& m, const Layout& lay, const solver::BrickGrid& grid);
   /// One wave; FIXED elements are at their targets in st.p, everything else starts at st.q
-  /// (X-). Marks the bricks it moves in `touched` and `hot`.
+  /// (u-). `wall` in lattice coordinates (each element gets its own, solver::element_wall). Marks the bricks it moves in `touched` and `hot`.
   PropagateStats run(Storage& st, const std::vector<Index>& fixed, const solver::Wall& wall, int max_sweeps,
                      std::vector<std::uint8_t>& touched, std::vector<std::uint8_t>& hot, WorkerPool& pool);
 

@@ -50,13 +50,13 @@ float relax_element_scalar(const RelaxContext& c, int x, int y, int z) {
 
   // The rule with precomputed weights (solver::relax_element, same floats and order).
   float sx = 0, s_y = 0, s_z = 0, sw = 0;
-  float lo[3] = {c.wall.lo[0], c.wall.lo[1], c.wall.lo[2]}, hi[3] = {c.wall.hi[0], c.wall.hi[1], c.wall.hi[2]};
+  const solver::Wall wall = solver::element_wall(c.wall, x, y, z);
+  float lo[3] = {wall.lo[0], wall.lo[1], wall.lo[2]}, hi[3] = {wall.hi[0], wall.hi[1], wall.hi[2]};
   for (int q = 0; q < count; ++q) {
     const Nb& n = nb[q];
     const float w = c.weight[n.k];
     const Vec3 pn{c.p[0][n.k], c.p[1][n.k], c.p[2][n.k]};
-    Vec3 off = pn - cur;  // the proposal's offset from cur (see solver::relax_element)
-    off[n.axis] += static_cast<float>(n.side);
+    const Vec3 off = pn - cur;  // the proposal's offset from cur (see solver::relax_element)
     sx += w * off.x;
     s_y += w * off.y;
     s_z += w * off.z;
@@ -83,7 +83,7 @@ float relax_element_scalar(const RelaxContext& c, int x, int y, int z) {
                        limits_from_tau(c.link_tau[n.axis][n.link_owner], 1.0f), c.time[n.k],
                        c.model->tau[static_cast<std::size_t>(n.linear)], Vec3{c.p[0][n.k], c.p[1][n.k], c.p[2][n.k]}};
     }
-    out = solver::relax_element(g, count, cur, c.omega, c.wall);
+    out = solver::relax_element(g, count, cur, c.omega, wall);
   }
   const Vec3 d = out - cur;
   const float corr = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);

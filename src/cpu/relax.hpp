@@ -25,13 +25,13 @@ namespace hpcm::cpu {
 /// What one relaxation pass reads and writes.
 struct RelaxContext {
   const Layout* lay;
-  float* p[3];                   ///< positions, storage order
+  float* p[3];                   ///< displacements from rest, storage order
   const float* weight;           ///< 1 / (tau + 1e-4) per element
   const float* link_tau[3];      ///< tolerance of each element's +x, +y, +z link
   const std::uint8_t* flags;
   const float* time;             ///< arrival times (tie-break of the general rule)
   const Model* model;            ///< tolerances for the general rule
-  solver::Wall wall;
+  solver::Wall wall;             ///< lattice coordinates (per element: solver::element_wall)
   float threshold, omega;
   /// The smallest squared correction whose square root reaches `threshold` (exact: the kernels
   /// compare squares and take one square root of the largest, with the same outcome).

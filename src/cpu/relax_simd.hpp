@@ -2,9 +2,10 @@
 // The relaxation rule over a run of one colour, N elements at a time (through kernel_table.hpp,
 // in simd_sse2.cpp, simd_avx2.cpp and simd_avx512.cpp with 4-, 8- and 16-wide vectors; each file
 // is compiled for its instruction set). Lane by lane these are the floating-point operations of
-// relax_element_scalar in the same order: weights times the proposals' offsets from the
-// element summed over the neighbours -x, +x, -y, +y, -z, +z from zero, the box limits rebuilt
-// from the link's tolerance exactly as limits_from_tau does, max/min for the intersection, one
+// relax_element_scalar in the same order, on displacements from rest: weights times the
+// proposals' offsets from the element summed over the neighbours -x, +x, -y, +y, -z, +z from
+// zero, the box limits rebuilt from the link's tolerance exactly as limits_from_tau does, the
+// element's wall (solver::element_wall) lane by lane, max/min for the intersection, one
 // IEEE division, the over-relaxed step kept below twice the correction
 // (solver::relax_coordinate, nextafterf on the bit pattern) and the clamp. No fused
 // multiply-add (the build uses -ffp-contract=off, and the wide files do not enable FMA). Lanes
@@ -48,17 +49,19 @@ float relax_span(const RelaxContext& c, const RelaxRun& r, int ya, int yb) {
   float max_corr = 0.0f;
   V max_sq_v = splat<V>(0.0f);  // largest squared correction applied by the vector lanes
   const V minus_inf = splat<V>(-solver::kInf), plus_inf = splat<V>(solver::kInf);
-  const V one = splat<V>(1.0f), zero = splat<V>(0.0f);
+  const V zero = splat<V>(0.0f);
   const V k08 = splat<V>(0.8f), k098 = splat<V>(0.98f), khalf = splat<V>(0.5f);
   const V omega = splat<V>(c.omega), limit_factor = splat<V>(0.5f * (2.0f + c.omega)), threshold_sq = splat<V>(c.threshold_sq);
-  const V wall_lo[3] = {splat<V>(c.wall.lo[0]), splat<V>(c.wall.lo[1]), splat<V>(c.wall.lo[2])};
-  const V wall_hi[3] = {splat<V>(c.wall.hi[0]), splat<V>(c.wall.hi[1]), splat<V>(c.wall.hi[2])};
+  // The element's wall (solver::element_wall): wall - X0, lane by lane on x, per row on y and z.
+  const V wall_lo_x = splat<V>(c.wall.lo[0]), wall_hi_x = splat<V>(c.wall.hi[0]);
+  const V wall_lo_z = splat<V>(solver::wall_lo_of(c.wall, 2, r.z)), wall_hi_z = splat<V>(solver::wall_hi_of(c.wall, 2, r.z));
   V lane_index;
   for (int l = 0; l < N; ++l) lane_index[l] = static_cast<float>(l);
   const V x_first = splat<V>(0.0f), x_last = splat<V>(static_cast<float>(nx - 1));
 
   for (int y = ya; y < yb; ++y) {
     const int h = (r.colour ^ y ^ r.z) & 1;  // the half whose elements have this colour
+    const V wall_lo_y = splat<V>(solver::wall_lo_of(c.wall, 1, y)), wall_hi_y = splat<V>(solver::wall_hi_of(c.wall, 1, y));
     [[maybe_unused]] const bool present[6] = {true, true, y > 0, y + 1 < ny, r.z > 0, r.z + 1 < nz};
     auto scalar = [&](int j) {
       const float corr = relax_element_scalar(c, 2 * j + h, y, r.z);
@@ -92,17 +95,16 @@ float relax_span(const RelaxContext& c, const RelaxRun& r, int ya, int yb) {
       }
       const V cur0 = load<V>(px + k), cur1 = load<V>(py + k), cur2 = load<V>(pz + k);
       V s0 = zero, s1 = zero, s2 = zero, sw = zero;
-      V lo0 = wall_lo[0], lo1 = wall_lo[1], lo2 = wall_lo[2];
-      V hi0 = wall_hi[0], hi1 = wall_hi[1], hi2 = wall_hi[2];
       // Lanes whose element has no -x (x = 0) or no +x (x = nx - 1) neighbour.
       const V x = splat<V>(static_cast<float>(h)) + splat<V>(2.0f) * (lane_index + splat<V>(static_cast<float>(j)));
+      V lo0 = wall_lo_x - x, lo1 = wall_lo_y, lo2 = wall_lo_z;
+      V hi0 = wall_hi_x - x, hi1 = wall_hi_y, hi2 = wall_hi_z;
       const M no_left = x == x_first, no_right = x == x_last;
       // Neighbour q in the rule's order -x, +x, -y, +y, -z, +z: axis q / 2, the element on the
       // neighbour's + side for even q. Same operations, same order as the scalar rule.
       auto neighbour = [&]<int q>(Index nk, Index owner) {
         constexpr int a = q / 2;
         constexpr bool plus_side = q % 2 == 0;
-        const V side = splat<V>(plus_side ? 1.0f : -1.0f);
         V w = load<V>(weight + nk);
         [[maybe_unused]] M missing{};
         if constexpr (q == 0) missing = no_left;
@@ -110,20 +112,20 @@ float relax_span(const RelaxContext& c, const RelaxRun& r, int ya, int yb) {
         if constexpr (q < 2) w = missing ? zero : w;
         const V p0 = load<V>(px + nk), p1 = load<V>(py + nk), p2 = load<V>(pz + nk);
         const V o0 = sub_exact(p0, cur0), o1 = sub_exact(p1, cur1), o2 = sub_exact(p2, cur2);  // offsets from the element
-        s0 = s0 + w * (a == 0 ? o0 + side : o0);
-        s1 = s1 + w * (a == 1 ? o1 + side : o1);
-        s2 = s2 + w * (a == 2 ? o2 + side : o2);
+        s0 = s0 + w * o0;
+        s1 = s1 + w * o1;
+        s2 = s2 + w * o2;
         sw = sw + w;
-        // limits_from_tau: min_d = 1 - 0.8 tau, max_d = 1 + tau, shear = min(tau, 0.5 (0.98 - 0.8 tau)).
+        // limits_from_tau: stretch in [-(0.8 tau), tau], shear = min(tau, 0.5 (0.98 - 0.8 tau)).
         const V tau = load<V>(link_tau[a] + owner);
-        const V min_d = one - k08 * tau, max_d = one + tau;
+        const V min_s = -(k08 * tau), max_s = tau;
         const V cap = khalf * (k098 - k08 * tau);
         const V shear = tau < cap ? tau : cap;
         auto bound = [&](V& lo, V& hi, V pn, bool axial) {
           V l, u;
           if (axial) {
-            l = plus_side ? add_exact(pn, min_d) : sub_exact(pn, max_d);
-            u = plus_side ? add_exact(pn, max_d) : sub_exact(pn, min_d);
+            l = plus_side ? add_exact(pn, min_s) : sub_exact(pn, max_s);
+            u = plus_side ? add_exact(pn, max_s) : sub_exact(pn, min_s);
           } else {
             l = sub_exact(pn, shear);
             u = add_exact(pn, shear);

@@ -43,7 +43,7 @@ void Storage::load(const Model& m, const State& s, WorkerPool& pool) {
   flags.assign(np, kFixed, next());  // padding and stagger gaps never move
   for_each_element(lay, pool, [&](std::size_t u, std::size_t k) {
     for (int a = 0; a < 3; ++a) {
-      p[a][k] = q[a][k] = s.pos[u][a];  // invariant between frames: X- == X
+      p[a][k] = q[a][k] = s.disp[u][a];  // invariant between frames: X- == X
       v[a][k] = s.vel[u][a];
       link_tau[a][k] = m.link_tau[m.link_index[a][u]];
     }
@@ -54,13 +54,13 @@ void Storage::load(const Model& m, const State& s, WorkerPool& pool) {
   });
 }
 
-void Storage::store_positions(std::vector<Vec3>& pos, WorkerPool& pool) const {
-  pos.resize(static_cast<std::size_t>(lay.size));
-  for_each_element(lay, pool, [&](std::size_t u, std::size_t k) { pos[u] = Vec3{p[0][k], p[1][k], p[2][k]}; });
+void Storage::store_displacements(std::vector<Vec3>& disp, WorkerPool& pool) const {
+  disp.resize(static_cast<std::size_t>(lay.size));
+  for_each_element(lay, pool, [&](std::size_t u, std::size_t k) { disp[u] = Vec3{p[0][k], p[1][k], p[2][k]}; });
 }
 
 void Storage::store_state(State& s, WorkerPool& pool) const {
-  store_positions(s.pos, pool);
+  store_displacements(s.disp, pool);
   const std::size_t n = static_cast<std::size_t>(lay.size);
   s.vel.resize(n);
   s.time.resize(n);

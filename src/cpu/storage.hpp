@@ -98,15 +98,15 @@ class StaggeredArray {
   std::size_t size_ = 0;
 };
 
-/// Storage-order arrays of one lattice. Positions, pre-ChainMail snapshot and velocities are
-/// split into their coordinates. Each link is stored as its tolerance (the Model's link_tau of
+/// Storage-order arrays of one lattice. Positions (as displacements from rest, u = X - X0),
+/// pre-ChainMail snapshot and velocities are split into their coordinates. Each link is stored as its tolerance (the Model's link_tau of
 /// its table entry): the relaxation rebuilds the box limits from it, as limits_from_tau does,
 /// with plain vector loads instead of table lookups. Every array carries kPad spare elements at
 /// its end, so SIMD loads that run past the last element stay in the allocation.
 struct Storage {
   Layout lay;
-  StaggeredArray<float> p[3];        ///< X (X+ after the ChainMail stage)
-  StaggeredArray<float> q[3];        ///< X-: frame-start positions (equal to X between frames)
+  StaggeredArray<float> p[3];        ///< u = X - X0 (u+ after the ChainMail stage)
+  StaggeredArray<float> q[3];        ///< u-: frame-start displacements (equal to u between frames)
   StaggeredArray<float> v[3];        ///< V
   StaggeredArray<float> time;        ///< arrival time of the last wave
   StaggeredArray<float> weight;      ///< relaxation weight 1 / (tau + 1e-4) of the element
@@ -118,12 +118,12 @@ struct Storage {
   StaggeredArray<std::uint8_t> flags;     ///< ElementFlags
   static constexpr std::size_t kPad = 16;
 
-  /// Lays out the model's per-element data and the state (positions, velocities, flags).
+  /// Lays out the model's per-element data and the state (displacements, velocities, flags).
   void load(const Model& m, const State& s, WorkerPool& pool);
-  /// Positions and velocities back in linear order.
-  void store_positions(std::vector<Vec3>& pos, WorkerPool& pool) const;
+  /// Displacements and velocities back in linear order.
+  void store_displacements(std::vector<Vec3>& disp, WorkerPool& pool) const;
   void store_state(State& s, WorkerPool& pool) const;
-  Vec3 position(Index linear) const {
+  Vec3 displacement(Index linear) const {
     const Index k = lay.at(linear);
     return {p[0][k], p[1][k], p[2][k]};
   }

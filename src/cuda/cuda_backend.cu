@@ -300,7 +300,7 @@ class GpuExec {
     try {
       for (int r = 0; r <= reps; ++r) {
         HPCM_CUDA(cudaEventRecord(ev_[6], stream_));
-        copy(tmp, a.L.pos, bytes);
+        copy(tmp, a.L.disp, bytes);
         HPCM_CUDA(cudaEventRecord(ev_[7], stream_));
         const double ms = elapsed(6, 7);
         if (r > 0) t.push_back(ms);

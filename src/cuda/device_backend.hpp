@@ -71,7 +71,7 @@ class DeviceBackend final : public Backend {
   void load(const Model& m, const Params& p, const State& s) override {
     p.validate();
     const Index n = m.size();
-    if (static_cast<Index>(s.pos.size()) != n || static_cast<Index>(s.vel.size()) != n ||
+    if (static_cast<Index>(s.disp.size()) != n || static_cast<Index>(s.vel.size()) != n ||
         static_cast<Index>(s.flags.size()) != n)
       throw Error("CUDA backend: state size does not match the model (" + std::to_string(n) + " elements)");
     // Element indices are 32-bit on the device (fixed set, pending and bucket lists).
@@ -94,7 +94,7 @@ class DeviceBackend final : public Backend {
 
     const std::size_t N = static_cast<std::size_t>(n), NB = static_cast<std::size_t>(L_.grid.count);
     const std::size_t N4 = (N + 3) / 4 * 4;
-    L_.pos = alloc<Vec3>(N, "positions");
+    L_.disp = alloc<Vec3>(N, "positions");
     L_.pre = alloc<Vec3>(N, "pre-ChainMail snapshot");
     L_.vel = alloc<Vec3>(N, "velocities");
     L_.time = alloc<float>(N, "arrival times");
@@ -140,8 +140,8 @@ class DeviceBackend final : public Backend {
     for (int a = 0; a < 3; ++a)
       x_.upload(const_cast<std::uint16_t*>(L_.link_index[a]), m.link_index[a].data(), N * sizeof(std::uint16_t));
     x_.upload(const_cast<LinkLimits*>(L_.link_table), m.link_table.data(), m.link_table.size() * sizeof(LinkLimits));
-    x_.upload(L_.pos, s.pos.data(), N * sizeof(Vec3));
-    x_.upload(L_.pre, s.pos.data(), N * sizeof(Vec3));  // invariant between frames: X- == X
+    x_.upload(L_.disp, s.disp.data(), N * sizeof(Vec3));
+    x_.upload(L_.pre, s.disp.data(), N * sizeof(Vec3));  // invariant between frames: u- == u
     x_.upload(L_.vel, s.vel.data(), N * sizeof(Vec3));
     std::fill(buf.begin(), buf.end(), solver::kInf);  // a new wave starts from scratch
     x_.upload(L_.time, buf.data(), N * sizeof(float));
@@ -152,7 +152,7 @@ class DeviceBackend final : public Backend {
     std::vector<std::uint8_t> touched(NB, 0);
     for (Index i = 0; i < n; ++i) {
       const std::size_t u = static_cast<std::size_t>(i);
-      if (!(s.vel[u] == Vec3{}) || !(s.pos[u] == m.rest(i))) touched[static_cast<std::size_t>(L_.brick_of_index(i))] = 1;
+      if (!(s.vel[u] == Vec3{}) || !(s.disp[u] == Vec3{})) touched[static_cast<std::size_t>(L_.brick_of_index(i))] = 1;
     }
     x_.upload(L_.touched, touched.data(), NB);
     x_.upload(L_.hot, touched.data(), NB);
@@ -433,26 +433,26 @@ class DeviceBackend final : public Backend {
 
   void download(State& s) override {
     const std::size_t N = static_cast<std::size_t>(L_.n);
-    s.pos.resize(N);
+    s.disp.resize(N);
     s.vel.resize(N);
     s.time.resize(N);
     s.flags.resize(N);
-    x_.download(s.pos.data(), L_.pos, N * sizeof(Vec3));
+    x_.download(s.disp.data(), L_.disp, N * sizeof(Vec3));
     x_.download(s.vel.data(), L_.vel, N * sizeof(Vec3));
     x_.download(s.time.data(), L_.time, N * sizeof(float));
     x_.download(s.flags.data(), L_.flags, N);
     x_.sync();
     for (auto& f : s.flags) f = static_cast<std::uint8_t>(f & ~kInternalBits);
   }
-  void download_positions(std::vector<Vec3>& pos) override {
-    pos.resize(static_cast<std::size_t>(L_.n));
-    x_.download(pos.data(), L_.pos, pos.size() * sizeof(Vec3));
+  void download_displacements(std::vector<Vec3>& disp) override {
+    disp.resize(static_cast<std::size_t>(L_.n));
+    x_.download(disp.data(), L_.disp, disp.size() * sizeof(Vec3));
     x_.sync();
   }
-  Vec3 position(Index i) override {
-    if (i < 0 || i >= L_.n) throw Error("position: element " + std::to_string(i) + " is out of range");
+  Vec3 displacement(Index i) override {
+    if (i < 0 || i >= L_.n) throw Error("displacement: element " + std::to_string(i) + " is out of range");
     Vec3 v;
-    x_.download(&v, L_.pos + i, sizeof(Vec3));
+    x_.download(&v, L_.disp + i, sizeof(Vec3));
     x_.sync();
     return v;
   }
@@ -718,7 +718,7 @@ class DeviceBackend final : public Backend {
   /// cache; records every element it moves.
   struct BrickCache final : solver::RestoreAccess {
     explicit BrickCache(DeviceBackend& d) : dev(d) {}
-    Vec3 position(Index i) const override { return *dev.cache_element(i); }
+    Vec3 displacement(Index i) const override { return *dev.cache_element(i); }
     void set_coordinate(Index i, int axis, float value) override {
       (*dev.cache_element(i))[axis] = value;
       dev.moved_elements_.push_back(static_cast<int>(i));

@@ -99,14 +99,14 @@ HPCM_HD inline float bits_float(unsigned u) {
 // ---------------------------------------------------------------------------------------------
 
 /// Device pointers and geometry, passed by value to every kernel.
-/// Per element: pos, pre, vel 3 x 12 B, time 4, tau 4, link index 3 x 2, tissue 1, statistics
+/// Per element: disp, pre, vel 3 x 12 B, time 4, tau 4, link index 3 x 2, tissue 1, statistics
 /// class 1, flags 1 = 53 bytes, plus the Model's link table (at most 65,536 x 16 bytes).
 struct Lattice {
   int nx = 0, ny = 0, nz = 0;
   long long n = 0;
   solver::BrickGrid grid;  ///< brick geometry, shared with the CPU backend
-  Vec3* pos = nullptr;   ///< X (X+ after ChainMail)
-  Vec3* pre = nullptr;   ///< X- (pre-ChainMail snapshot; equal to X between frames)
+  Vec3* disp = nullptr;  ///< u = X - X0, displacements from rest (u+ after ChainMail)
+  Vec3* pre = nullptr;   ///< u- (pre-ChainMail snapshot; equal to u between frames)
   Vec3* vel = nullptr;   ///< V
   float* time = nullptr;
   std::uint8_t* flags = nullptr;  ///< ElementFlags | internal bits; 4-byte aligned, padded
@@ -153,7 +153,7 @@ HPCM_HD inline int gather(const Lattice& L, int x, int y, int z, long long i, so
     nb[c].L = L.link_of(axis, lo, hi);
     nb[c].t = L.time[n];
     nb[c].tau = L.tau[n];
-    nb[c].p = L.pos[n];
+    nb[c].p = L.disp[n];
     ++c;
   });
   return c;
@@ -203,8 +203,8 @@ HPCM_HD void apply_targets_block(const FixedArgs& a, B& blk) {
   blk.each([&](int tid) {
     for (int j = tid; j < a.n; j += T) {
       const long long i = a.fixed[j];
-      if (!(a.L.pos[i] == a.targets[j])) {
-        a.L.pos[i] = a.targets[j];
+      if (!(a.L.disp[i] == a.targets[j])) {
+        a.L.disp[i] = a.targets[j];
         const long long b = a.L.brick_of_index(i);
         a.L.touched[b] = 1;
         a.L.hot[b] = 1;
@@ -238,7 +238,7 @@ struct PropArgs {
   Vec3* sp = nullptr;
   int list_cap = 0;
   double delta = 1.0;   ///< bucket width (smallest link w), as ChainMailCpu
-  solver::Wall wall;    ///< boundary box of every clamp
+  solver::Wall wall;    ///< boundary box of every clamp (lattice coordinates; per element: solver::element_wall)
   int max_sweeps = 0;
   PropCtl* ctl = nullptr;
 };
@@ -370,8 +370,8 @@ HPCM_HD void propagate_block(const PropArgs& a, PropShared& sh, B& blk) {
             L.coords(e, x, y, z);
             solver::Neighbour nb[6];
             const int c = gather(L, x, y, z, e, nb);
-            propagate_in_bucket(e, L.pre[e], nb, c, k, a.delta, a.wall, a.st[j], a.sp[j]);
-            if (!(a.st[j] == L.time[e]) || !(a.sp[j] == L.pos[e])) sh.any = 1;
+            propagate_in_bucket(e, L.pre[e], nb, c, k, a.delta, solver::element_wall(a.wall, x, y, z), a.st[j], a.sp[j]);
+            if (!(a.st[j] == L.time[e]) || !(a.sp[j] == L.disp[e])) sh.any = 1;
           }
         });
         ++iterations;
@@ -384,7 +384,7 @@ HPCM_HD void propagate_block(const PropArgs& a, PropShared& sh, B& blk) {
           for (int j = tid; j < nl; j += T) {
             const long long e = a.list[j];
             L.time[e] = a.st[j];
-            L.pos[e] = a.sp[j];
+            L.disp[e] = a.sp[j];
           }
         });
       }
@@ -459,7 +459,7 @@ HPCM_HD void reset_wave_block(const Lattice& L, long long b, B& blk) {
 HPCM_HD inline void full_reset_element(const Lattice& L, long long i) {
   L.time[i] = solver::kInf;
   L.flags[i] = static_cast<std::uint8_t>(L.flags[i] & ~kInternalBits);
-  if (!(L.flags[i] & kFixed)) L.pos[i] = L.pre[i];
+  if (!(L.flags[i] & kFixed)) L.disp[i] = L.pre[i];
 }
 
 /// Touched bricks after the wave (reported as active bricks), thread per brick.
@@ -495,7 +495,7 @@ struct RelaxArgs {
   std::uint8_t* phase[3] = {nullptr, nullptr, nullptr};       ///< per brick: changed in phase p (ring, p % 3)
   float threshold = 1e-4f;
   float omega = 1.0f;   ///< over-relaxation factor (SolverParams::relax_omega)
-  solver::Wall wall;    ///< boundary box of every clamp
+  solver::Wall wall;    ///< boundary box of every clamp (lattice coordinates; per element: solver::element_wall)
   int sweeps = 0;
 };
 
@@ -574,12 +574,12 @@ HPCM_HD void relax_colour_block(const RelaxArgs& a, int p, RelaxShared& sh, B& b
         solver::Neighbour nb[6];
         const int c = gather(L, x, y, z, i, nb);
         if (c == 0) continue;
-        const Vec3 cur = L.pos[i];
-        const Vec3 p = solver::relax_element(nb, c, cur, a.omega, a.wall);
+        const Vec3 cur = L.disp[i];
+        const Vec3 p = solver::relax_element(nb, c, cur, a.omega, solver::element_wall(a.wall, x, y, z));
         const Vec3 d = p - cur;
         const float corr = sqrtf(d.x * d.x + d.y * d.y + d.z * d.z);
         if (!(corr >= a.threshold) || corr == 0.0f) continue;  // small corrections are skipped
-        L.pos[i] = p;
+        L.disp[i] = p;
         sh.any = 1;
         at_max_u32(&sh.maxc, float_bits(corr));
       }
@@ -655,13 +655,13 @@ HPCM_HD void check_links_block(const CheckArgs& a, long long b, B& blk) {
       const int c[3] = {lo[0] + q % bs, lo[1] + (q / bs) % bs, lo[2] + q / (bs * bs)};
       if (c[0] >= hi[0] || c[1] >= hi[1] || c[2] >= hi[2]) continue;
       const long long e = L.index(c[0], c[1], c[2]);
-      const Vec3 pe = L.pos[e];
+      const Vec3 pe = L.disp[e];
       for (int ax = 0; ax < 3; ++ax) {
-        const float below = a.wall.lo[ax] - pe[ax], above = pe[ax] - a.wall.hi[ax];
+        const float below = solver::wall_lo_of(a.wall, ax, c[ax]) - pe[ax], above = pe[ax] - solver::wall_hi_of(a.wall, ax, c[ax]);
         if ((below < above ? above : below) > solver::kRestoreTolerance) found = true;
         if (c[ax] + 1 >= d[ax]) continue;
         const long long n = e + stride[ax];
-        if (link_violation(pe, L.pos[n], L.link_of(ax, e, n), ax) > solver::kRestoreTolerance) found = true;
+        if (link_violation(pe, L.disp[n], L.link_of(ax, e, n), ax) > solver::kRestoreTolerance) found = true;
       }
     }
     if (found) {  // every writer stores the same value
@@ -693,7 +693,7 @@ HPCM_HD void gather_brick_block(const GatherArgs& a, long long j, B& blk) {
   blk.each([&](int tid) {
     for (int q = tid; q < per; q += T) {
       const int x = lo[0] + q % bs, y = lo[1] + (q / bs) % bs, z = lo[2] + q / (bs * bs);
-      if (x < hi[0] && y < hi[1] && z < hi[2]) out[q] = L.pos[L.index(x, y, z)];
+      if (x < hi[0] && y < hi[1] && z < hi[2]) out[q] = L.disp[L.index(x, y, z)];
     }
   });
 }
@@ -711,7 +711,7 @@ struct ScatterArgs {
 HPCM_HD inline void scatter_position_thread(const ScatterArgs& a, long long j) {
   if (j >= a.n) return;
   const long long e = a.elements[j];
-  a.L.pos[e] = a.positions[j];
+  a.L.disp[e] = a.positions[j];
   const long long b = a.L.brick_of_index(e);
   a.L.touched[b] = 1;
   a.L.hot[b] = 1;
@@ -807,14 +807,14 @@ HPCM_HD void layer_block(const LayerArgs& a, long long b, LayerShared& sh, B& bl
       if (x >= hi[0] || y >= hi[1] || z >= hi[2]) continue;
       const long long i = L.index(x, y, z);
       const int t = L.tissue[i];
-      const Vec3 post = L.pos[i], before = L.pre[i];
+      const Vec3 post = L.disp[i], before = L.pre[i];
       Vec3 v = L.vel[i];
       float speed;
       const Vec3 out = dynamics::velocity_update(a.k, t, asleep || (L.flags[i] & kFixed) != 0, before, post,
                                                  Vec3{float(x), float(y), float(z)}, v, &speed);
       at_max_u32(&sh.vmax, float_bits(speed));
       L.vel[i] = v;
-      L.pos[i] = out;
+      L.disp[i] = out;
       L.pre[i] = out;  // frame-end snapshot: next frame's X-
       if (!(v == Vec3{})) anyv = true;
       if (!(out == post)) moved = true;

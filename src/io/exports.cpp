@@ -31,9 +31,9 @@ void check_model_matches(const Input& in, const Model& m, const std::string& wha
 
 }  // namespace detail
 
-std::vector<float> displacement_on_input_grid(const Input& in, const Model& m, const std::vector<Vec3>& pos) {
+std::vector<float> displacement_on_input_grid(const Input& in, const Model& m, const std::vector<Vec3>& disp) {
   detail::check_model_matches(in, m, "displacement field");
-  const std::vector<float> lattice_mm = detail::displacement_mm(m, pos);
+  const std::vector<float> lattice_mm = detail::displacement_mm(m, disp);
   if (in.order.identity()) return lattice_mm;
   std::vector<float> out(lattice_mm.size());
   detail::for_each_lattice_voxel(in.lattice_grid.dims, in.order, [&](std::int64_t l, std::int64_t s) {
@@ -191,7 +191,7 @@ std::string warped_label_name(const std::string& label_path, const std::string& 
   return "warped_" + stem + "_" + tag + ext;
 }
 
-DeformedOnInputGrid deform_on_input_grid(const Input& in, const Model& m, const std::vector<Vec3>& pos,
+DeformedOnInputGrid deform_on_input_grid(const Input& in, const Model& m, const std::vector<Vec3>& disp,
                                          const std::vector<LabelMap>& labels) {
   detail::check_model_matches(in, m, "deformed CT");
   if (static_cast<Index>(m.tissue.size()) != m.size())
@@ -215,7 +215,7 @@ DeformedOnInputGrid deform_on_input_grid(const Input& in, const Model& m, const 
   const std::array<double, 9> A = detail::index_to_physical_matrix(d.grid.direction, d.grid.spacing);
   const Int3 dims = d.grid.dims;
   d.stats = detail::for_each_rest_position(
-      d.grid, m, pos, detail::kInverseMappingIterations, detail::kInverseMappingNewtonIterations,
+      d.grid, m, disp, detail::kInverseMappingIterations, detail::kInverseMappingNewtonIterations,
       [&](std::int64_t voxel, const double* X, const double* q0) {
         d.hu[voxel] = detail::sample_trilinear(in.stored, q0);
         // Pull-back v = X - x in millimetres: where each output voxel takes its value from.
@@ -238,19 +238,19 @@ DeformedOnInputGrid deform_on_input_grid(const Input& in, const Model& m, const 
   return d;
 }
 
-ExportFiles export_frame(const Input& in, const Model& m, const std::vector<Vec3>& pos, const std::string& dir,
+ExportFiles export_frame(const Input& in, const Model& m, const std::vector<Vec3>& disp, const std::string& dir,
                          const std::string& tag, bool nrrd_field, const std::vector<LabelMap>& labels) {
   const std::filesystem::path d(dir);
   ExportFiles f;
   f.displacement_nifti = (d / ("displacement_" + tag + ".nii.gz")).string();
-  f.integrity.field = displacement_jacobian(in.lattice_grid, displacement_on_input_grid(in, m, pos));
-  write_displacement_field(in, m, pos, f.displacement_nifti);
+  f.integrity.field = displacement_jacobian(in.lattice_grid, displacement_on_input_grid(in, m, disp));
+  write_displacement_field(in, m, disp, f.displacement_nifti);
   if (nrrd_field) {
     f.displacement_nrrd = (d / ("displacement_" + tag + ".nrrd")).string();
-    write_displacement_field(in, m, pos, f.displacement_nrrd);
+    write_displacement_field(in, m, disp, f.displacement_nrrd);
   }
   f.deformed = (d / ("deformed_" + tag + deformed_extension(in))).string();
-  const DeformedOnInputGrid def = deform_on_input_grid(in, m, pos, labels);
+  const DeformedOnInputGrid def = deform_on_input_grid(in, m, disp, labels);
   Volume deformed = in.stored;
   deformed.hu = def.hu;
   write_volume(deformed, f.deformed);

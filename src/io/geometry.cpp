@@ -124,10 +124,10 @@ inline double snap(double q) {
 }
 }  // namespace
 
-InverseMappingStats for_each_rest_position(const Grid& original, const Model& m, const std::vector<Vec3>& pos,
+InverseMappingStats for_each_rest_position(const Grid& original, const Model& m, const std::vector<Vec3>& disp,
                                            int max_iterations, int newton_iterations, const RestPositionVisitor& visit) {
-  if (static_cast<Index>(pos.size()) != m.size())
-    throw Error("deformed volume: " + std::to_string(pos.size()) + " positions for a lattice of " +
+  if (static_cast<Index>(disp.size()) != m.size())
+    throw Error("deformed volume: " + std::to_string(disp.size()) + " displacements for a lattice of " +
                 std::to_string(m.size()) + " elements");
   if (original.size() == 0) throw Error("deformed volume: the original volume is empty");
   const std::array<double, 9> A = index_to_physical_matrix(m.direction, m.spacing);       // lattice -> mm
@@ -141,13 +141,10 @@ InverseMappingStats for_each_rest_position(const Grid& original, const Model& m,
                                                     m.origin[2] - original.origin[2]});
   const int N[3] = {m.dims.x, m.dims.y, m.dims.z};
   const int O[3] = {original.dims.x, original.dims.y, original.dims.z};
-  // Displacement in lattice units at every lattice point.
-  std::vector<Vec3> u(pos.size());
+  // Displacement in lattice units at every lattice point (what the solver stores).
+  const std::vector<Vec3>& u = disp;
   bool any = false;
-  for (Index i = 0; i < m.size(); ++i) {
-    u[i] = pos[i] - m.rest(i);
-    any = any || u[i].x != 0 || u[i].y != 0 || u[i].z != 0;
-  }
+  for (Index i = 0; i < m.size(); ++i) any = any || u[i].x != 0 || u[i].y != 0 || u[i].z != 0;
   // Trilinear u at lattice point X and, when `grad` is given, its derivative
   // grad[r * 3 + a] = du_r / dX_a (zero along an axis where X lies beyond the lattice).
   auto sample_u = [&](const double X[3], double out[3], double* grad = nullptr) {
@@ -306,28 +303,28 @@ std::int64_t nearest_voxel(Int3 dims, const double q[3]) {
   return at;
 }
 
-std::vector<float> resample_deformed(const Volume& original, const Model& m, const std::vector<Vec3>& pos,
+std::vector<float> resample_deformed(const Volume& original, const Model& m, const std::vector<Vec3>& disp,
                                      int max_iterations, int newton_iterations, InverseMappingStats* stats) {
   if (original.hu.size() != original.size() || original.size() == 0)
     throw Error("deformed volume: the original volume is empty");
   std::vector<float> out(original.size());
   const InverseMappingStats st = for_each_rest_position(
-      grid_of(original), m, pos, max_iterations, newton_iterations,
+      grid_of(original), m, disp, max_iterations, newton_iterations,
       [&](std::int64_t voxel, const double*, const double* q0) { out[voxel] = sample_trilinear(original, q0); });
   if (stats) *stats = st;
   return out;
 }
 
-std::vector<float> displacement_mm(const Model& m, const std::vector<Vec3>& pos) {
-  if (static_cast<Index>(pos.size()) != m.size())
-    throw Error("displacement field: " + std::to_string(pos.size()) + " positions for a lattice of " +
+std::vector<float> displacement_mm(const Model& m, const std::vector<Vec3>& disp) {
+  if (static_cast<Index>(disp.size()) != m.size())
+    throw Error("displacement field: " + std::to_string(disp.size()) + " displacements for a lattice of " +
                 std::to_string(m.size()) + " elements");
   const std::array<double, 9> A = index_to_physical_matrix(m.direction, m.spacing);
-  std::vector<float> out(pos.size() * 3);
+  std::vector<float> out(disp.size() * 3);
   for (Index i = 0; i < m.size(); ++i) {
-    const Vec3 d = pos[i] - m.rest(i);
+    const Vec3 d = disp[i];  // exactly the solver's displacement (no subtraction of the rest position)
     if (!std::isfinite(d.x) || !std::isfinite(d.y) || !std::isfinite(d.z))
-      throw Error("displacement field: non-finite position at element " + std::to_string(i));
+      throw Error("displacement field: non-finite displacement at element " + std::to_string(i));
     for (int r = 0; r < 3; ++r)
       out[3 * i + r] = static_cast<float>(A[r * 3] * d.x + A[r * 3 + 1] * d.y + A[r * 3 + 2] * d.z);
   }

@@ -75,7 +75,7 @@ using RestPositionVisitor = std::function<void(std::int64_t voxel, const double*
 /// The inverse mapping of the deformed lattice onto `original` (a grid in any index order): for
 /// each voxel at x the rest position X solving X + u(X) = x (see resample_deformed), handed to
 /// `visit`. One pass serves every export that needs it (deformed CT, labels, pull-back field).
-InverseMappingStats for_each_rest_position(const Grid& original, const Model& m, const std::vector<Vec3>& pos,
+InverseMappingStats for_each_rest_position(const Grid& original, const Model& m, const std::vector<Vec3>& disp,
                                            int max_iterations, int newton_iterations, const RestPositionVisitor& visit);
 /// Trilinear HU of `original` at continuous voxel index q; kAirHU beyond half a voxel outside.
 float sample_trilinear(const Volume& original, const double q[3]);
@@ -86,18 +86,18 @@ std::int64_t nearest_voxel(Int3 dims, const double q[3]);
 /// Inverse-mapping resample of the deformed lattice onto the grid of `original` (any index
 /// order):
 /// output voxel q -> lattice point x; rest position X solves X = x - u(X) (trilinear u); HU = trilinear sample of `original` at X's physical position, kAirHU where
-/// that lies outside `original`. `pos` are lattice positions (pos.size() == m.size()).
+/// that lies outside `original`. `disp` are the elements' displacements from rest, lattice units (disp.size() == m.size()).
 /// Up to `max_iterations` fixed-point steps from X = x, then, where the residual is still above
 /// kInverseMappingToleranceMm, up to `newton_iterations` Newton steps (with step halving).
 /// `stats` (optional) receives how well the inverse mapping converged.
-std::vector<float> resample_deformed(const Volume& original, const Model& m, const std::vector<Vec3>& pos,
+std::vector<float> resample_deformed(const Volume& original, const Model& m, const std::vector<Vec3>& disp,
                                      int max_iterations = kInverseMappingIterations,
                                      int newton_iterations = kInverseMappingNewtonIterations,
                                      InverseMappingStats* stats = nullptr);
 
-/// Lattice displacement pos - rest converted to millimetres in LPS physical space:
-/// u_mm = direction * (spacing (.) u). Interleaved xyz, pos.size() * 3 floats.
-std::vector<float> displacement_mm(const Model& m, const std::vector<Vec3>& pos);
+/// Lattice displacement u converted to millimetres in LPS physical space:
+/// u_mm = direction * (spacing (.) u). Interleaved xyz, disp.size() * 3 floats.
+std::vector<float> displacement_mm(const Model& m, const std::vector<Vec3>& disp);
 
 /// Any image read without reorientation or conversion to HU (for tests and diagnostics).
 struct RawImage {

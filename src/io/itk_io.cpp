@@ -996,8 +996,8 @@ void write_volume(const Volume& v, const std::string& path) {
   write_scalar(v.hu, v.dims, v.spacing, v.origin, v.direction, path);
 }
 
-void write_displacement_field(const Input& in, const Model& m, const std::vector<Vec3>& pos, const std::string& path) {
-  const std::vector<float> u = displacement_on_input_grid(in, m, pos);
+void write_displacement_field(const Input& in, const Model& m, const std::vector<Vec3>& disp, const std::string& path) {
+  const std::vector<float> u = displacement_on_input_grid(in, m, disp);
   using VecImage = itk::Image<itk::Vector<float, 3>, 3>;
   static_assert(sizeof(itk::Vector<float, 3>) == 3 * sizeof(float), "itk::Vector<float, 3> is three packed floats");
   const Grid& g = in.lattice_grid;
@@ -1013,20 +1013,20 @@ void write_displacement_field(const Input& in, const Model& m, const std::vector
               "a displacement field");
 }
 
-InverseMappingStats write_deformed_volume(const Volume& target, const Model& m, const std::vector<Vec3>& pos,
+InverseMappingStats write_deformed_volume(const Volume& target, const Model& m, const std::vector<Vec3>& disp,
                                           const std::string& path) {
   validate_volume(target, path);
   InverseMappingStats stats;
-  const std::vector<float> hu = detail::resample_deformed(target, m, pos, detail::kInverseMappingIterations,
+  const std::vector<float> hu = detail::resample_deformed(target, m, disp, detail::kInverseMappingIterations,
                                                           detail::kInverseMappingNewtonIterations, &stats);
   write_scalar(hu, target.dims, target.spacing, target.origin, target.direction, path);
   return stats;
 }
 
-InverseMappingStats write_deformed_volume(const Input& in, const Model& m, const std::vector<Vec3>& pos,
+InverseMappingStats write_deformed_volume(const Input& in, const Model& m, const std::vector<Vec3>& disp,
                                           const std::string& path) {
   detail::check_model_matches(in, m, path + ": deformed CT");
-  return write_deformed_volume(in.stored, m, pos, path);
+  return write_deformed_volume(in.stored, m, disp, path);
 }
 
 void write_label_map(const Input& in, const Model& m, const std::string& path) {

@@ -85,18 +85,23 @@ constexpr int kSkin = static_cast<int>(Tissue::SkinFat), kMuscle = static_cast<i
               kBone = static_cast<int>(Tissue::Bone);
 
 bool finite_state(const State& s) {
-  for (std::size_t i = 0; i < s.pos.size(); ++i)
+  for (std::size_t i = 0; i < s.disp.size(); ++i)
     for (int a = 0; a < 3; ++a)
-      if (!std::isfinite(s.pos[i][a]) || !std::isfinite(s.vel[i][a])) return false;
+      if (!std::isfinite(s.disp[i][a]) || !std::isfinite(s.vel[i][a])) return false;
   return true;
 }
 
-float boundary_excess(const State& s, Int3 d, float margin) {
-  const float hi[3] = {d.x - 1 + margin, d.y - 1 + margin, d.z - 1 + margin};
-  float e = 0;
-  for (const Vec3& p : s.pos)
+/// How far any element lies outside the boundary box [-margin, N - 1 + margin], from its
+/// position X0 + u in double.
+float boundary_excess(const Model& m, const State& s, float margin) {
+  const Int3 d = m.dims;
+  const double hi[3] = {d.x - 1.0 + margin, d.y - 1.0 + margin, d.z - 1.0 + margin};
+  double e = 0;
+  for (Index i = 0; i < static_cast<Index>(s.disp.size()); ++i) {
+    const Point3 p = position_of(m, i, s.disp[static_cast<std::size_t>(i)]);
     for (int a = 0; a < 3; ++a) e = std::max({e, -margin - p[a], p[a] - hi[a]});
-  return e;
+  }
+  return static_cast<float>(e);
 }
 
 ConditionResult run_condition(const Model& model, Params params, DampingMode mode, const ExperimentOptions& opt,
@@ -123,7 +128,7 @@ ConditionResult run_condition(const Model& model, Params params, DampingMode mod
   // frame-end positions (the frame before the release is the first one kept).
   FarFieldSplit far_field(model, centre, far_distance);
   std::vector<Vec3> previous;
-  if (release == 0) previous = State::rest(model).pos;
+  if (release == 0) previous = State::rest(model).disp;
   while (!player.done()) {
     const FrameReport f = player.step(so);
     if (auto ended = limited.after_frame(f, sim.tool_offset(), sim.requested_offset()))
@@ -133,13 +138,13 @@ ConditionResult run_condition(const Model& model, Params params, DampingMode mod
     r.max_requested_offset = std::max(r.max_requested_offset, f.requested_offset);
     r.max_achieved_offset = std::max(r.max_achieved_offset, f.grab_offset);
     if (f.tool_limited && r.first_limited_frame < 0) r.first_limited_frame = f.frame;
-    r.centre_track.push_back(sim.position(centre));
+    r.centre_displacement.push_back(sim.displacement(centre));
     const State& s = sim.state();
     const int frame = static_cast<int>(r.frames.size()) - 1;
-    if (frame >= release && frame < release + recorded) far_field.add_frame(previous, s.pos);
-    if (frame >= release - 1 && frame < release + recorded - 1) previous = s.pos;
+    if (frame >= release && frame < release + recorded) far_field.add_frame(previous, s.disp);
+    if (frame >= release - 1 && frame < release + recorded - 1) previous = s.disp;
     if (r.finite && !finite_state(s)) r.finite = false;
-    r.max_boundary_excess = std::max(r.max_boundary_excess, boundary_excess(s, model.dims, params.dynamics.margin));
+    r.max_boundary_excess = std::max(r.max_boundary_excess, boundary_excess(model, s, params.dynamics.margin));
     if (opt.progress) opt.progress(cond_index, ++done, total);
   }
   r.far_speed_sum = far_field.far_sum();
@@ -170,7 +175,7 @@ ConditionResult run_condition(const Model& model, Params params, DampingMode mod
   r.settle_frames = opt.settle_frames;
   const State& s = sim.state();
   if (r.finite && !finite_state(s)) r.finite = false;
-  r.max_boundary_excess = std::max(r.max_boundary_excess, boundary_excess(s, model.dims, params.dynamics.margin));
+  r.max_boundary_excess = std::max(r.max_boundary_excess, boundary_excess(model, s, params.dynamics.margin));
   for (Index i = 0; i < model.size(); ++i)
     if (model.tissue[i] == kBone && model.counted(i)) r.max_bone_velocity = std::max(r.max_bone_velocity, norm(s.vel[i]));
   return r;
@@ -237,7 +242,7 @@ ExperimentResult run_experiment(const Model& model, const Params& params, const 
   Vec3 pull = g0.path.empty() ? Vec3{0, -1, 0} : g0.path.back().offset;
   const float pl = norm(pull);
   pull = pl > 0 ? (1.0f / pl) * pull : Vec3{0, -1, 0};
-  auto along = [&](const ConditionResult& cr, int f) { return dot(cr.centre_track[f] - cr.centre_rest, pull); };
+  auto along = [&](const ConditionResult& cr, int f) { return dot(cr.centre_displacement[f], pull); };
 
   // 8.1: condition A does not overshoot: after release the grab centre never passes rest
   // (opposite to the pull), and its distance from rest never increases from one frame to the
@@ -246,8 +251,8 @@ ExperimentResult run_experiment(const Model& model, const Params& params, const 
   {
     const auto& a = res.conditions[kA];
     double worst = 0;
-    for (int f = rel; f < static_cast<int>(a.centre_track.size()); ++f) {
-      const float prev = norm(a.centre_track[f - 1] - a.centre_rest), cur = norm(a.centre_track[f] - a.centre_rest);
+    for (int f = rel; f < static_cast<int>(a.centre_displacement.size()); ++f) {
+      const float prev = norm(a.centre_displacement[f - 1]), cur = norm(a.centre_displacement[f]);
       worst = std::max<double>(worst, cur - prev);
       worst = std::max<double>(worst, -along(a, f));
     }
@@ -262,12 +267,12 @@ ExperimentResult run_experiment(const Model& model, const Params& params, const 
   for (int c : {kB, kC}) {
     const auto& cr = res.conditions[c];
     double overshoot = 0;
-    for (int f = rel; f < static_cast<int>(cr.centre_track.size()); ++f)
+    for (int f = rel; f < static_cast<int>(cr.centre_displacement.size()); ++f)
       overshoot = std::max<double>(overshoot, -along(cr, f));  // past rest, away from the pull
     const double swing = 0.01 * std::max(cr.max_achieved_offset, 1e-6f);
     int changes = 0, dir = 0;
     double extreme = along(cr, rel - 1);
-    for (int f = rel; f < static_cast<int>(cr.centre_track.size()); ++f) {
+    for (int f = rel; f < static_cast<int>(cr.centre_displacement.size()); ++f) {
       const double a = along(cr, f);
       if (dir >= 0 && a > extreme) {
         if (dir == 0 && a - extreme < swing) continue;

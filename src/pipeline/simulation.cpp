@@ -157,7 +157,7 @@ void Simulation::grab_within(Index centre, Vec3 radii) {
         if (ux * ux + uy * uy + uz * uz <= 1.0f) {
           const Index i = model_.index(x, y, z);
           grabbed_.push_back(i);
-          grab_origin_.push_back(backend_->position(i));
+          grab_origin_.push_back(backend_->displacement(i));
         }
       }
   grab_centre_ = centre;
@@ -191,7 +191,7 @@ void Simulation::push_fixed() {
   idx.reserve(anchors_.size() + grabbed_.size());
   for (Index i : anchors_) {
     idx.push_back(i);
-    targets.push_back(model_.rest(i));
+    targets.push_back(Vec3{});  // anchored at rest
     flags.push_back(kAnchor);
   }
   for (std::size_t k = 0; k < grabbed_.size(); ++k) {
@@ -225,6 +225,7 @@ FrameReport Simulation::step(const StepOptions& opt) {
   const RestoreStats rs = b.restore_links();  // every link back in its box
   r.restored_links = rs.violated_links;
   r.restore_violation = rs.max_violation;
+  r.restore_converged = !rs.capped;
   b.mark(2);
   // The integrity metrics are O(N): measured again only when positions may have changed
   // (some brick had work), else the last values hold exactly.
@@ -232,9 +233,9 @@ FrameReport Simulation::step(const StepOptions& opt) {
   if (active_chainmail > 0) ++positions_version_;
   if (opt.link_violation) {
     if (link_metric_.version != positions_version_) {
-      std::vector<Vec3> pos;
-      b.download_positions(pos);
-      link_metric_ = {positions_version_, max_link_violation(model_, pos), 0};
+      std::vector<Vec3> disp;
+      b.download_displacements(disp);
+      link_metric_ = {positions_version_, max_link_violation(model_, disp), 0};
     }
     r.max_link_violation = link_metric_.value;
   }
@@ -245,9 +246,9 @@ FrameReport Simulation::step(const StepOptions& opt) {
   if (b.active_bricks() > active_chainmail) ++positions_version_;
   if (opt.cell_jacobian) {
     if (jacobian_metric_.version != positions_version_) {
-      std::vector<Vec3> pos;
-      b.download_positions(pos);
-      const CellJacobianStats cj = cell_jacobian(model_, pos);
+      std::vector<Vec3> disp;
+      b.download_displacements(disp);
+      const CellJacobianStats cj = cell_jacobian(model_, disp);
       jacobian_metric_ = {positions_version_, cj.min_det, cj.folded};
     }
     r.min_cell_jacobian = jacobian_metric_.value;

@@ -19,11 +19,11 @@ void find_violations(const Model& m, const BrickGrid& grid, const std::vector<In
       for (int y = lo.y; y < hi.y; ++y)
         for (int x = lo.x; x < hi.x; ++x) {
           const Index e = m.index(x, y, z);
-          const Vec3 pe = pos.position(e);
+          const Vec3 pe = pos.displacement(e);
           const int c[3] = {x, y, z};
           bool seed_e = false;
           for (int a = 0; a < 3; ++a) {
-            const float outside = std::max(wall.lo[a] - pe[a], pe[a] - wall.hi[a]);
+            const float outside = std::max(wall_lo_of(wall, a, c[a]) - pe[a], pe[a] - wall_hi_of(wall, a, c[a]));
             if (outside > kRestoreTolerance) {
               ++st.violated_links;
               st.max_violation = std::max(st.max_violation, outside);
@@ -31,7 +31,7 @@ void find_violations(const Model& m, const BrickGrid& grid, const std::vector<In
             }
             if (c[a] + 1 >= d[a]) continue;
             const Index n = e + sx[a];
-            const float v = link_violation(pe, pos.position(n), m.link(a, e), a);
+            const float v = link_violation(pe, pos.displacement(n), m.link(a, e), a);
             if (v > kRestoreTolerance) {
               ++st.violated_links;
               st.max_violation = std::max(st.max_violation, v);
@@ -56,9 +56,8 @@ void LinkRestorer::init(const Model& m) {
   for (auto& v : val_) v.assign(n, 0.0f);
 }
 
-void LinkRestorer::pass(const Model& m, const RestoreAccess& pos, int b, int k, float wall_lo, float wall_hi,
-                        bool upper, const std::vector<Index>& seeds) {
-  const bool inward = rounds_inward(std::max(-wall_lo, wall_hi));
+bool LinkRestorer::pass(const Model& m, const RestoreAccess& pos, int b, int k, const Wall& wall, bool upper,
+                        const std::vector<Index>& seeds) {
   queue_.clear();
   for (Index e : seeds)
     if (!queued_[e] && !pos.fixed(e)) {
@@ -66,18 +65,17 @@ void LinkRestorer::pass(const Model& m, const RestoreAccess& pos, int b, int k, 
       queue_.push_back(e);
     }
   // FIFO work list: an element whose value changes re-queues its neighbours. The pass is a
-  // monotone fixed-point iteration, so the visiting order does not change the result.
-  for (std::size_t head = 0; head < queue_.size(); ++head) {
+  // monotone fixed-point iteration, so the visiting order does not change the result. Capped
+  // (restore.hpp, kRestoreVisitsPerElement): a pass that reaches the cap stops and says so.
+  const std::size_t cap = static_cast<std::size_t>(visits_per_element_) * static_cast<std::size_t>(m.size());
+  std::size_t head = 0;
+  for (; head < queue_.size() && head < cap; ++head) {
     const Index e = queue_[head];
     queued_[e] = 0;
     const Int3 c = m.coords(e);
-    float bound = upper ? wall_hi : wall_lo;
-    const float xe = value(pos, b, k, e);
-    const bool e_moved = mark_[e] != 0;  // changed by a pass on this axis (either copy)
+    float bound = upper ? wall_hi_of(wall, b, c[b]) : wall_lo_of(wall, b, c[b]);
     for_each_face_neighbour(m, c.x, c.y, c.z, e, [&](Index n, int a, int side, const LinkLimits& L) {
-      const float cn = value(pos, b, k, n);
-      if (left_as_placed(e_moved, mark_[n] != 0, xe, cn, L, a, side, b, inward)) return;
-      const float lb = link_bound(cn, L, a, side, b, upper, inward);
+      const float lb = link_bound(value(pos, b, k, n), L, a, side, b, upper);
       bound = upper ? (lb < bound ? lb : bound) : (lb > bound ? lb : bound);
     });
     float& x = value(pos, b, k, e);
@@ -95,11 +93,15 @@ void LinkRestorer::pass(const Model& m, const RestoreAccess& pos, int b, int k, 
       }
     });
   }
+  const bool finished = head == queue_.size();
+  for (; head < queue_.size(); ++head) queued_[queue_[head]] = 0;  // left over at the cap
+  return finished;
 }
 
 void LinkRestorer::restore(const Model& m, const BrickGrid& grid, const std::vector<Index>& seeds, RestoreAccess& pos,
                            const Wall& wall, std::vector<std::uint8_t>& moved, RestoreStats& st) {
   if (seeds.empty()) return;
+  bool ok = true;
   for (int b = 0; b < 3; ++b) {
     ++epoch_;
     if (epoch_ == 0) {  // wrapped: forget every stamp
@@ -109,16 +111,15 @@ void LinkRestorer::restore(const Model& m, const BrickGrid& grid, const std::vec
     changed_.clear();
     // Copy 0: raise(lower(x)); copy 1: lower(raise(x)). The second pass of each copy starts
     // from the seeds and every element the first passes moved (only there can it find work).
-    pass(m, pos, b, 0, wall.lo[b], wall.hi[b], true, seeds);
-    pass(m, pos, b, 1, wall.lo[b], wall.hi[b], false, seeds);
+    ok &= pass(m, pos, b, 0, wall, true, seeds);
+    ok &= pass(m, pos, b, 1, wall, false, seeds);
     pass_seeds_ = seeds;
     pass_seeds_.insert(pass_seeds_.end(), changed_.begin(), changed_.end());
-    pass(m, pos, b, 0, wall.lo[b], wall.hi[b], false, pass_seeds_);
-    pass(m, pos, b, 1, wall.lo[b], wall.hi[b], true, pass_seeds_);
+    ok &= pass(m, pos, b, 0, wall, false, pass_seeds_);
+    ok &= pass(m, pos, b, 1, wall, true, pass_seeds_);
     // The midpoints, then lower and raise once more from them (copy 0): rounding a midpoint can
     // leave a link a float step or so outside its box; these passes move such elements by about
-    // that much and put every link they touch back (exactly inside its box where the axis
-    // rounds inward, restore.hpp).
+    // that much and put every link they touch back (within half a float step, restore.hpp).
     // Seeded with every changed element and its neighbours (either end of a link may have to
     // move); a seed listed twice is queued once.
     auto changed_and_neighbours = [&] {
@@ -130,13 +131,13 @@ void LinkRestorer::restore(const Model& m, const BrickGrid& grid, const std::vec
     };
     for (Index e : changed_) val_[0][e] = val_[1][e] = 0.5f * (val_[0][e] + val_[1][e]);
     changed_and_neighbours();
-    pass(m, pos, b, 0, wall.lo[b], wall.hi[b], true, pass_seeds_);
+    ok &= pass(m, pos, b, 0, wall, true, pass_seeds_);
     changed_and_neighbours();
-    pass(m, pos, b, 0, wall.lo[b], wall.hi[b], false, pass_seeds_);
+    ok &= pass(m, pos, b, 0, wall, false, pass_seeds_);
     for (Index e : changed_) {
       mark_[e] = 0;
       const float restored = val_[0][e];
-      if (restored == pos.position(e)[b]) continue;
+      if (restored == pos.displacement(e)[b]) continue;
       pos.set_coordinate(e, b, restored);
       moved[grid.brick_of_index(e)] = 1;
       if (!moved_flag_[e]) {
@@ -146,6 +147,7 @@ void LinkRestorer::restore(const Model& m, const BrickGrid& grid, const std::vec
     }
   }
   st.moved += static_cast<Index>(moved_list_.size());
+  st.capped = st.capped || !ok;
   for (Index e : moved_list_) moved_flag_[e] = 0;
   moved_list_.clear();
 }

@@ -13,10 +13,10 @@
 
 namespace hpcm::solver {
 
-/// Positions and FIXED flags of a backend, by linear element index.
+/// Displacements from rest and FIXED flags of a backend, by linear element index.
 struct RestoreAccess {
   virtual ~RestoreAccess() = default;
-  virtual Vec3 position(Index i) const = 0;
+  virtual Vec3 displacement(Index i) const = 0;
   virtual void set_coordinate(Index i, int axis, float value) = 0;
   virtual bool fixed(Index i) const = 0;
 };
@@ -30,6 +30,8 @@ void find_violations(const Model& m, const BrickGrid& grid, const std::vector<In
 class LinkRestorer {
  public:
   void init(const Model& m);
+  /// The cap on each pass, in visits per lattice element (kRestoreVisitsPerElement; tests lower it).
+  void set_visits_per_element(int visits) { visits_per_element_ = visits; }
   /// Restores consistency around `seeds` (ascending, unique linear indices): every link and
   /// the wall, FIXED elements untouched. Bricks whose elements moved are flagged in `moved`;
   /// st.moved counts the elements moved.
@@ -39,13 +41,14 @@ class LinkRestorer {
  private:
   /// One pass over coordinate b of copy k (0 or 1), seeded with `seeds`; records the elements
   /// whose value changed in changed_ (each once per axis).
-  void pass(const Model& m, const RestoreAccess& pos, int b, int k, float wall_lo, float wall_hi, bool upper,
+  /// Returns false when the pass reached its cap (kRestoreVisitsPerElement) and stopped.
+  bool pass(const Model& m, const RestoreAccess& pos, int b, int k, const Wall& wall, bool upper,
             const std::vector<Index>& seeds);
   /// The coordinate of element e in copy k, loaded from pos on first use in this axis.
   float& value(const RestoreAccess& pos, int b, int k, Index e) {
     if (stamp_[e] != epoch_) {
       stamp_[e] = epoch_;
-      val_[0][e] = val_[1][e] = pos.position(e)[b];
+      val_[0][e] = val_[1][e] = pos.displacement(e)[b];
     }
     return val_[k][e];
   }
@@ -55,6 +58,7 @@ class LinkRestorer {
   std::vector<std::uint32_t> stamp_;
   std::uint32_t epoch_ = 0;
   std::vector<float> val_[2];  ///< coordinate b under the two pass orders
+  int visits_per_element_ = kRestoreVisitsPerElement;
 };
 
 }  // namespace hpcm::solver

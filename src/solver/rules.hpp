@@ -23,7 +23,8 @@ inline constexpr float kInf = __builtin_huge_valf();
 /// produce boxes that meet in a point, and rounding must not turn that into a conflict.
 inline constexpr float kGapTolerance = 4.0f * 1.1920929e-7f;
 
-/// One neighbour of an element as the rules see it.
+/// One neighbour of an element as the rules see it. Positions are displacements from rest
+/// (u = X - X0, core/link_box.hpp).
 struct Neighbour {
   Index idx;
   int axis;       ///< link axis
@@ -31,13 +32,14 @@ struct Neighbour {
   LinkLimits L;   ///< the link's limits
   float t;        ///< neighbour's arrival time
   float tau;      ///< neighbour's own tolerance (relaxation weight)
-  Vec3 p;         ///< neighbour's position
+  Vec3 p;         ///< neighbour's displacement from rest
 };
 
 /// The boundary box every element stays inside, [-margin, N_axis - 1 + margin] on each axis
 /// (the velocity layer's boundary clamp, SPEC §5.7). ChainMail treats it as one more box: the
 /// wave, the relaxation and the link restoration never move an element out of it, so the
-/// boundary clamp never has to collapse cells that ChainMail placed.
+/// boundary clamp never has to collapse cells that ChainMail placed. make_wall gives it in
+/// lattice coordinates; element_wall gives one element's displacement bounds.
 struct Wall {
   float lo[3] = {-kInf, -kInf, -kInf};
   float hi[3] = {kInf, kInf, kInf};
@@ -52,9 +54,24 @@ inline Wall make_wall(Int3 dims, float margin) {
   return w;
 }
 
+/// The wall as bounds on the displacement of the element at lattice (x, y, z):
+/// u[a] in [wall.lo[a] - i_a, wall.hi[a] - i_a]. Every backend computes it with these two
+/// float subtractions (the SIMD kernels lane by lane), so they all clamp to the same floats.
+HPCM_HD inline float wall_lo_of(const Wall& w, int a, int i) { return w.lo[a] - static_cast<float>(i); }
+HPCM_HD inline float wall_hi_of(const Wall& w, int a, int i) { return w.hi[a] - static_cast<float>(i); }
+HPCM_HD inline Wall element_wall(const Wall& w, int x, int y, int z) {
+  Wall e;
+  const int c[3] = {x, y, z};
+  for (int a = 0; a < 3; ++a) {
+    e.lo[a] = wall_lo_of(w, a, c[a]);
+    e.hi[a] = wall_hi_of(w, a, c[a]);
+  }
+  return e;
+}
+
 HPCM_HD inline bool key_less(float ta, Index ia, float tb, Index ib) { return ta < tb || (ta == tb && ia < ib); }
 
-/// Clamps p0 into the intersection of the wall and the boxes of the neighbours in `mask`
+/// Clamps p0 (a displacement) into the intersection of the element's wall (element_wall) and the boxes of the neighbours in `mask`
 /// (bit k = nb[k]). Where the intersection is empty on an axis, the earliest neighbour's box
 /// (by key) is used, then the wall; a gap of a few ulps (rounding of boxes that touch) takes
 /// the touching point instead. Without a neighbour in `mask`, p0 is returned unchanged.
@@ -151,24 +168,21 @@ HPCM_HD inline float relax_coordinate(float cur, float q, float omega) {
 }
 
 /// Relaxation rule: (over-relaxed step toward the) weighted average of the neighbours'
-/// proposals p_n + X0_e - X0_n with weight 1/(tau_n + 1e-4), then clamped into all neighbours'
-/// boxes (never creates a violation against the neighbours' current positions).
-/// `omega` over-relaxes the step from the current position `cur` toward the average
-/// (successive over-relaxation; omega = 1 is plain Gauss-Seidel).
+/// proposals (their displacements u_n: a neighbour proposes that the element be displaced as it
+/// is) with weight 1/(tau_n + 1e-4), then clamped into all neighbours' boxes and the element's
+/// wall `wall` (element_wall; never creates a violation against the neighbours' current
+/// positions). `omega` over-relaxes the step from the current displacement `cur` toward the
+/// average (successive over-relaxation; omega = 1 is plain Gauss-Seidel).
 ///
-/// The average is taken of the proposals' offsets from `cur` (p_n + X0_e - X0_n - cur), not of
-/// the absolute proposals: the same number in exact arithmetic, but a weighted sum of absolute
-/// coordinates carries a rounding error proportional to the coordinates (several float steps
-/// at 128 and beyond), which the over-relaxation amplifies past the relaxation threshold and
-/// which then keeps an equilibrium lattice moving for ever. The offsets are small and
-/// p_n - cur is exact, so the step is exact to a few ulps of itself; the new position never
-/// becomes a 2-times step by rounding (relax_coordinate). docs/solver.md, "Relaxation arithmetic".
+/// The average is taken of the proposals' offsets from `cur` (u_n - cur), not of the proposals:
+/// the same number in exact arithmetic, but the offsets are small and u_n - cur is exact, so the
+/// step is exact to a few ulps of itself; the new displacement never becomes a 2-times step by
+/// rounding (relax_coordinate). docs/solver.md, "Relaxation arithmetic".
 HPCM_HD inline Vec3 relax_element(const Neighbour* nb, int count, Vec3 cur, float omega, const Wall& wall) {
   float sx = 0, sy = 0, sz = 0, sw = 0;
   for (int k = 0; k < count; ++k) {
     const float w = 1.0f / (nb[k].tau + 1e-4f);
-    Vec3 off = nb[k].p - cur;
-    off[nb[k].axis] += static_cast<float>(nb[k].side);
+    const Vec3 off = nb[k].p - cur;
     sx += w * off.x;
     sy += w * off.y;
     sz += w * off.z;

@@ -36,22 +36,14 @@ constexpr double kInfD = std::numeric_limits<double>::infinity();
 /// side = +1 when e lies on the + side of n along the link axis a.
 double slack_to(const LinkLimits& L, int a, int side, int b) {
   if (a != b) return L.shear;
-  // n below e along the axis (side +1): n moving up compresses the link, down to min_d.
-  return side > 0 ? 1.0 - static_cast<double>(L.min_d) : static_cast<double>(L.max_d) - 1.0;
+  // n below e along the axis (side +1): n moving up compresses the link, by up to -min_stretch.
+  return side > 0 ? -static_cast<double>(L.min_stretch) : static_cast<double>(L.max_stretch);
 }
 
 /// Slack in the other direction: d_e <= d_n + slack_from.
 double slack_from(const LinkLimits& L, int a, int side, int b) {
   if (a != b) return L.shear;
-  return side > 0 ? static_cast<double>(L.max_d) - 1.0 : 1.0 - static_cast<double>(L.min_d);
-}
-
-/// The rounding the restoration may take from each link on an axis of n elements: one float step
-/// of the axis's largest coordinate (n + margin, beyond the wall at n - 1 + margin) where it rounds
-/// box limits inward (solver/restore.hpp, rounds_inward), none where it rounds to nearest.
-double inward_rounding_on_axis(int n, float margin) {
-  if (!rounds_inward(static_cast<float>(n - 1) + margin)) return 0.0;
-  return static_cast<double>(float_step_above(static_cast<float>(n) + margin));
+  return side > 0 ? static_cast<double>(L.max_stretch) : -static_cast<double>(L.min_stretch);
 }
 
 /// Dijkstra's priority queue as a radix heap: the keys popped never decrease (the slacks are
@@ -130,24 +122,16 @@ class SparseDistances {
   std::vector<std::unique_ptr<double[]>> pages_;
 };
 
-/// Slack left to a link after the restoration's rounding: on axes of 128 cells and more it
-/// rounds every box limit toward the inside, by less than a float step of the coordinate
-/// (solver/restore.hpp, link_bound), so a chain stretched to its exact slack could not be met
-/// in floats. Two float steps of the axis's largest coordinate per link keep every chain the
-/// tool may stretch feasible after rounding (3e-5 cells per link up to 256; never below zero,
-/// which the search's radix heap needs).
-double usable(double slack, double float_step) { return std::max(0.0, slack - 2.0 * float_step); }
-
 /// The largest offset allowed on one side of an axis whose search found `bound` (the smallest
-/// start + slack path to an anchor or to the wall). A grabbed element's position (origin +
-/// offset) is rounded to the coordinate's float grid: on an axis that rounds inward, one more
-/// float step keeps it feasible (a grab at the wall has no link to spare). Then rounded
-/// inwards so that a clamped offset is met after float rounding of the targets. Offset 0 stays
-/// allowed where the search allows it: the grabbed elements then stay where they are, with no
-/// rounding to allow for (a grab at rest on the wall with margin 0). Nondecreasing in bound.
-float side_limit(double bound, double step) {
+/// start + slack path to an anchor or to the wall), rounded inwards so that a clamped offset is
+/// met after float rounding of the targets. Offset 0 stays allowed where the search allows it:
+/// the grabbed elements then stay where they are, with no rounding to allow for (a grab at rest
+/// on the wall with margin 0). Nondecreasing in bound. The restoration rounds box limits to
+/// nearest on displacements (solver/restore.hpp), so a chain stretched to its exact slack keeps
+/// its links within half a float step of their displacements: no slack is reserved for it.
+float side_limit(double bound) {
   const auto below = [](double v) { return std::nextafter(static_cast<float>(std::min(v, 1e30)), -INFINITY); };
-  return std::max(below(bound - step), std::min(below(bound), 0.0f));
+  return std::max(below(bound), std::min(below(bound), 0.0f));
 }
 
 void check_inputs(const Model& m, const std::vector<Index>& grabbed, const std::vector<Vec3>& origin,
@@ -164,7 +148,6 @@ struct ToolLimitSearch::Direction {
   Direction(Index n, int axis_, bool upper_) : axis(axis_), upper(upper_), dist(n) {}
   int axis;
   bool upper;  ///< upper bound of the offset: searched along the reversed edges
-  double step = 0;  ///< the restoration's rounding per link on this axis
   RadixHeap heap;
   SparseDistances dist;
   double best = kInfD;  ///< smallest start + slack to an anchor or the wall found so far
@@ -172,7 +155,7 @@ struct ToolLimitSearch::Direction {
   bool done = false;  ///< best is the bound
   /// A lower bound of the search's bound: exact when done.
   double known() const { return done ? best : std::min(best, settled); }
-  float allowed() const { return side_limit(known(), step); }
+  float allowed() const { return side_limit(known()); }
   /// How far this side must allow the offset to go (positive toward the side).
   double wanted(Vec3 offset) const { return upper ? offset[axis] : -offset[axis]; }
   /// Whether the clamp of `offset` can be told on this side from what is searched so far.
@@ -187,17 +170,15 @@ ToolLimitSearch::ToolLimitSearch(const Model& m, std::vector<Index> grabbed, con
   if (grabbed_.empty()) throw Error("tool_limit: no grabbed elements");
   is_grabbed_.assign(static_cast<std::size_t>(m.size()), 0);
   for (Index g : grabbed_) is_grabbed_[static_cast<std::size_t>(g)] = 1;
-  const int n[3] = {m.dims.x, m.dims.y, m.dims.z};
   dirs_.reserve(6);
   for (int task = 0; task < 6; ++task) {
     Direction& d = dirs_.emplace_back(m.size(), task / 2, task % 2 == 0);
     const int b = d.axis;
-    d.step = inward_rounding_on_axis(n[b], margin);
     // Upper bound: offset <= slack(anchor or wall -> g) - d_g, searched backwards from g.
     // Lower bound: offset >= -(d_g + slack(g -> anchor or wall)), searched forwards from g.
     for (std::size_t k = 0; k < grabbed_.size(); ++k) {
       const Index g = grabbed_[k];
-      const double d_g = static_cast<double>(origin[k][b]) - m.coords(g)[b];
+      const double d_g = static_cast<double>(origin[k][b]);  // displacement at grab time
       const double start = d.upper ? -d_g : d_g;
       if (start < d.dist.get(g)) {
         d.dist.set(g, start);
@@ -243,7 +224,7 @@ void ToolLimitSearch::extend(Direction& s, double cap) const {
     s.best = std::min(s.best, d + wall);
     for_each_face_neighbour(m, c.x, c.y, c.z, e, [&](Index n, int a, int side, const LinkLimits& L) {
       if (grabbed[static_cast<std::size_t>(n)]) return;
-      const double nd = d + usable(forward ? slack_to(L, a, side, b) : slack_from(L, a, side, b), s.step);
+      const double nd = d + (forward ? slack_to(L, a, side, b) : slack_from(L, a, side, b));
       if (nd < s.dist.get(n)) {
         s.dist.set(n, nd);
         s.heap.push(nd, n);
@@ -274,7 +255,7 @@ void ToolLimitSearch::settle_for(Vec3 offset) {
   std::vector<std::pair<int, double>> work;  // (direction, cap)
   for (int k = 0; k < 6; ++k) {
     const Direction& d = dirs_[static_cast<std::size_t>(k)];
-    if (!d.settled_for(offset)) work.emplace_back(k, std::max(d.wanted(offset) + d.step, 0.0) * 1.25 + 0.25);
+    if (!d.settled_for(offset)) work.emplace_back(k, std::max(d.wanted(offset), 0.0) * 1.25 + 0.25);
   }
   while (!work.empty()) {
     run(work);

@@ -1,7 +1,8 @@
 #pragma once
 // How far the grab tool can pull (SPEC §4, "infeasible requests"). Gibson's boxes constrain
 // each coordinate axis separately: along axis b every link (u, v = u + unit_a) demands
-// x_v - x_u in [min_d, max_d] when a == b and in [-shear, shear] otherwise. FIXED elements
+// u_v - u_u in [min_stretch, max_stretch] when a == b and in [-shear, shear] otherwise
+// (displacements from rest, u = X - X0). FIXED elements
 // (anchors at rest, the grabbed elements moving rigidly with the tool) can all be met by some
 // placement of the free elements exactly when, on every axis, the displacement between a
 // grabbed element and an anchor does not exceed the slack of the cheapest chain of links
@@ -25,7 +26,8 @@ struct ToolLimit {
   bool contains(Vec3 offset) const;
 };
 
-/// Feasible offsets of a grab: `grabbed` elements held at `origin[k] + offset`; `anchored`
+/// Feasible offsets of a grab: `grabbed` elements held at displacement `origin[k] + offset`
+/// (origin: their displacements from rest when grabbed); `anchored`
 /// flags (per element, non-zero = anchored at rest; grabbed elements are never anchors);
 /// `margin` is the boundary margin. Throws hpcm::Error on size mismatches.
 ToolLimit tool_limit(const Model& m, const std::vector<Index>& grabbed, const std::vector<Vec3>& origin,

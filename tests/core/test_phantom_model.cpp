@@ -132,8 +132,8 @@ TEST(Model, LinksFromPairMeanAndClasses) {
       // material's exact limits there.
       const LinkLimits want = p.material.link(v.hu[i], v.hu[i + stride[a]]);
       const LinkLimits got = m.link(a, i);
-      EXPECT_NEAR(got.min_d, want.min_d, 1e-4f);
-      EXPECT_NEAR(got.max_d, want.max_d, 1e-4f);
+      EXPECT_NEAR(got.min_stretch, want.min_stretch, 1e-4f);
+      EXPECT_NEAR(got.max_stretch, want.max_stretch, 1e-4f);
       EXPECT_NEAR(got.shear, want.shear, 1e-4f);
       EXPECT_NEAR(got.w, want.w, 1e-4f);
       EXPECT_NE(m.link_index[a][i], Model::kNoLink);
@@ -153,15 +153,15 @@ TEST(Model, RestStateAndLinkViolation) {
   const Model m = build_model(v, Params{});
   State s = State::rest(m);
   for (Index i = 0; i < m.size(); ++i) {
-    EXPECT_EQ(s.pos[i], m.rest(i));
+    EXPECT_EQ(s.disp[i], Vec3{});
     EXPECT_EQ(s.vel[i], Vec3{});
     EXPECT_TRUE(std::isinf(s.time[i]));
     EXPECT_EQ(s.flags[i], 0);
   }
-  EXPECT_EQ(max_link_violation(m, s.pos), 0.0f);
+  EXPECT_EQ(max_link_violation(m, s.disp), 0.0f);
   const float tau = m.link(0, 0).shear;
-  s.pos[m.index(1, 1, 0)].y += tau + 0.25f;  // shear on its x and z links, stretch of its one y link
-  EXPECT_NEAR(max_link_violation(m, s.pos), 0.25f, 1e-5f);
+  s.disp[m.index(1, 1, 0)].y += tau + 0.25f;  // shear on its x and z links, stretch of its one y link
+  EXPECT_NEAR(max_link_violation(m, s.disp), 0.25f, 1e-5f);
 }
 
 TEST(Model, Errors) {

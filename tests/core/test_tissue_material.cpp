@@ -95,13 +95,13 @@ TEST(Material, TauInterpolatesInLogSpaceWLinearly) {
 TEST(Material, LinkUsesMeanHuAndIsSymmetric) {
   const MaterialTable m;
   const LinkLimits a = m.link(-100.0f, 700.0f), b = m.link(700.0f, -100.0f);
-  EXPECT_EQ(a.min_d, b.min_d);
-  EXPECT_EQ(a.max_d, b.max_d);
+  EXPECT_EQ(a.min_stretch, b.min_stretch);
+  EXPECT_EQ(a.max_stretch, b.max_stretch);
   EXPECT_EQ(a.shear, b.shear);
   EXPECT_EQ(a.w, b.w);
   const float tau = m.tau(300.0f);
-  EXPECT_NEAR(a.max_d, 1.0f + tau, 1e-6f);
-  EXPECT_NEAR(a.min_d, 1.0f - 0.8f * tau, 1e-6f);
+  EXPECT_NEAR(a.max_stretch, tau, 1e-6f);
+  EXPECT_NEAR(a.min_stretch, -0.8f * tau, 1e-6f);
   EXPECT_NEAR(a.shear, tau, 1e-7f);
   EXPECT_NEAR(a.w, m.w(300.0f), 1e-7f);
   // SPEC §3 defaults: stiffer tissue has smaller tau and smaller w.
@@ -113,8 +113,8 @@ TEST(Material, LinkUsesMeanHuAndIsSymmetric) {
 
 TEST(Material, LimitsFromTau) {
   const LinkLimits l = limits_from_tau(0.1f, 0.3f);
-  EXPECT_NEAR(l.min_d, 0.92f, 1e-7f);
-  EXPECT_NEAR(l.max_d, 1.1f, 1e-7f);
+  EXPECT_NEAR(l.min_stretch, -0.08f, 1e-8f);
+  EXPECT_NEAR(l.max_stretch, 0.1f, 1e-8f);
   EXPECT_EQ(l.shear, 0.1f);
   EXPECT_EQ(l.w, 0.3f);
 }

@@ -35,10 +35,10 @@ struct Lattice {
   }
 };
 
-/// Positions in linear order (Storage::store_positions).
+/// Displacements in linear order (Storage::store_displacements).
 std::vector<Vec3> positions(const cpu::Storage& st, cpu::WorkerPool& pool) {
   std::vector<Vec3> out;
-  st.store_positions(out, pool);
+  st.store_displacements(out, pool);
   return out;
 }
 
@@ -59,15 +59,15 @@ void check_schedule(Int3 dims, const std::vector<Int3>& centres) {
       for (int dy = -1; dy <= 1; ++dy)
         for (int dx = -1; dx <= 1; ++dx) {
           const Index i = m.index(c.x + dx, c.y + dy, c.z + dz);
-          s.pos[static_cast<std::size_t>(i)] = s.pos[static_cast<std::size_t>(i)] + Vec3{U(rng), U(rng), U(rng)};
+          s.disp[static_cast<std::size_t>(i)] = s.disp[static_cast<std::size_t>(i)] + Vec3{U(rng), U(rng), U(rng)};
         }
   solver::BrickGrid grid;
   grid.init(m.dims, p.solver.brick_size);
 
   // The bricks holding the disturbance: where the relaxation starts (hot), as the backend marks them.
   std::vector<std::uint8_t> start_hot(static_cast<std::size_t>(grid.count), 0);
-  for (std::size_t u = 0; u < s.pos.size(); ++u)
-    if (!(s.pos[u] == m.rest(static_cast<Index>(u)))) start_hot[static_cast<std::size_t>(grid.brick_of_index(static_cast<Index>(u)))] = 1;
+  for (std::size_t u = 0; u < s.disp.size(); ++u)
+    if (!(s.disp[u] == Vec3{})) start_hot[static_cast<std::size_t>(grid.brick_of_index(static_cast<Index>(u)))] = 1;
   ASSERT_GE(std::count(start_hot.begin(), start_hot.end(), 1), 5);
   cpu::WorkerPool one(1);
   const std::vector<Vec3> start = positions(Lattice(m, p, s, one).st, one);

@@ -143,7 +143,7 @@ inline void check_waves(const Factory& make_device, const Model& m, const Params
     const float r = 0.5f + 2.0f * U(rng);
     const Vec3 off{4.0f * U(rng) - 2.0f, 4.0f * U(rng) - 2.0f, 4.0f * U(rng) - 2.0f};
     std::vector<Vec3> now;
-    cpu->download_positions(now);
+    cpu->download_displacements(now);
     const std::vector<Index> fixed = ball(m, c, r);
     std::vector<Vec3> targets;
     for (Index i : fixed) targets.push_back(now[static_cast<std::size_t>(i)] + off);
@@ -158,8 +158,8 @@ inline void check_waves(const Factory& make_device, const Model& m, const Params
     State sc, sd;
     cpu->download(sc);
     dev->download(sd);
-    const float dp = max_diff(sc.pos, sd.pos), dt = time_diff(sc.time, sd.time);
-    ASSERT_LE(dp, tol.pos) << "propagation positions";
+    const float dp = max_diff(sc.disp, sd.disp), dt = time_diff(sc.time, sd.time);
+    ASSERT_LE(dp, tol.disp) << "propagation positions";
     ASSERT_GE(dt, 0.0f) << "propagation: the sets of reached elements differ";
     ASSERT_LE(dt, tol.pos) << "propagation arrival times";
     EXPECT_EQ(sc.flags, sd.flags);
@@ -169,8 +169,8 @@ inline void check_waves(const Factory& make_device, const Model& m, const Params
     const int K = p.solver.relax_sweeps;
     const RelaxStats rc = cpu->relax(K), rd = dev->relax(K);
     std::vector<Vec3> xc, xd;
-    cpu->download_positions(xc);
-    dev->download_positions(xd);
+    cpu->download_displacements(xc);
+    dev->download_displacements(xd);
     const float dr = max_diff(xc, xd);
     ASSERT_LE(dr, tol.pos) << "relaxation positions (cpu " << rc.sweeps << " sweeps, device " << rd.sweeps << ")";
     worst_p = std::max(worst_p, dr);
@@ -180,8 +180,8 @@ inline void check_waves(const Factory& make_device, const Model& m, const Params
     dev->velocity_layer(&vd);
     cpu->download(sc);
     dev->download(sd);
-    const float dl = std::max(max_diff(sc.pos, sd.pos), max_diff(sc.vel, sd.vel));
-    ASSERT_LE(dl, tol.pos) << "velocity layer positions / velocities";
+    const float dl = std::max(max_diff(sc.disp, sd.disp), max_diff(sc.vel, sd.vel));
+    ASSERT_LE(dl, tol.disp) << "velocity layer positions / velocities";
     worst_p = std::max(worst_p, dl);
     for (int t = 0; t < kTissueCount; ++t) {
       const float n = static_cast<float>(std::max<Index>(m.class_count[t], 1));
@@ -207,8 +207,8 @@ inline RestoreStats check_restore_on(Backend& dev, const Model& m, const Params&
   EXPECT_EQ(rc.max_violation, rd.max_violation);
   EXPECT_EQ(rc.moved, rd.moved);
   std::vector<Vec3> xc, xd;
-  cpu->download_positions(xc);
-  dev.download_positions(xd);
+  cpu->download_displacements(xc);
+  dev.download_displacements(xd);
   EXPECT_EQ(max_diff(xc, xd), 0.0f) << "restored positions";
   return rc;
 }
@@ -221,9 +221,10 @@ inline void check_restore(const Factory& make_device, const Model& m, const Para
   State broken = State::rest(m);
   for (int k = 0; k < 40; ++k) {
     const auto i = static_cast<std::size_t>(pick(rng));
-    broken.pos[i] = broken.pos[i] + Vec3{U(rng), U(rng), U(rng)};
+    broken.disp[i] = broken.disp[i] + Vec3{U(rng), U(rng), U(rng)};
   }
-  broken.pos[static_cast<std::size_t>(pick(rng))].x = -3.0f;  // beyond the boundary box
+  const Index out = pick(rng);
+  broken.disp[static_cast<std::size_t>(out)].x = -3.0f - static_cast<float>(m.coords(out).x);  // X = -3: beyond the boundary box
   for (const bool with_violations : {true, false}) {
     SCOPED_TRACE(what + (with_violations ? ", broken links" : ", rest state"));
     auto dev = make_device();
@@ -253,7 +254,7 @@ inline FarRestoreCase far_restore_case() {
   c.s = State::rest(c.m);
   const auto e = static_cast<std::size_t>(c.m.index(32, 12, 8));
   EXPECT_EQ(c.s.flags[e] & kFixed, 0);
-  c.s.pos[e].x += 1.5f;
+  c.s.disp[e].x += 1.5f;
   c.bricks = (64 / 4) * (24 / 4) * (16 / 4);
   return c;
 }
@@ -277,8 +278,8 @@ inline void check_pipeline(const Factory& make_device, const Model& m, const Par
     EXPECT_EQ(ra.propagate_converged, rb.propagate_converged);
     const State& xa = a.state();
     const State& xb = b.state();
-    const float d = std::max(max_diff(xa.pos, xb.pos), max_diff(xa.vel, xb.vel));
-    ASSERT_LE(d, tol.pos) << "positions / velocities";
+    const float d = std::max(max_diff(xa.disp, xb.disp), max_diff(xa.vel, xb.vel));
+    ASSERT_LE(d, tol.disp) << "positions / velocities";
     worst = std::max(worst, d);
     for (int t = 0; t < kTissueCount; ++t) {
       const float dm = relative_diff(ra.mean_speed[t], rb.mean_speed[t]), dx = float_diff(ra.max_speed[t], rb.max_speed[t]);

@@ -13,9 +13,15 @@
 using namespace hpcm;
 using hpcm::dynamics::LayerConstants;
 using hpcm::dynamics::make_constants;
-using hpcm::dynamics::velocity_update;
 
 namespace {
+
+/// dynamics::velocity_update in absolute coordinates: it works on displacements u = X - X0 from
+/// the element's rest position X0 (`rest`); these tests state positions, so they go through u.
+Vec3 update_abs(const LayerConstants& k, int tissue, bool fixed, Vec3 pre, Vec3 post, Vec3 rest, Vec3& v,
+                float* speed = nullptr) {
+  return rest + dynamics::velocity_update(k, tissue, fixed, pre - rest, post - rest, rest, v, speed);
+}
 
 constexpr int kAir = 0, kSkin = 1, kMuscle = 2, kBone = 3;
 constexpr float kTol = 1e-6f;
@@ -129,14 +135,14 @@ TEST(DeadZone, JustBelowEpsilonIsDropped) {
   // dX = 0.999e-3 * (0.6, 0.8, 0): |dX| = 0.999e-3 < eps = 1e-3, so dX counts as 0.
   const Vec3 pre{0, 0, 0}, post{0.6f * 0.999e-3f, 0.8f * 0.999e-3f, 0};
   Vec3 v{0.1f, 0, 0};
-  const Vec3 x = velocity_update(k, kSkin, false, pre, post, pre, v);
+  const Vec3 x = update_abs(k, kSkin, false, pre, post, pre, v);
   // V = 0.85 * 0.1 + 1 * 0 = 0.085 (the old velocity still decays)
   EXPECT_VEC_NEAR(v, 0.085f, 0.0f, 0.0f);
   // X = X+ + V: the ChainMail correction itself is kept, only the velocity ignores it.
   EXPECT_VEC_NEAR(x, post.x + 0.085f, post.y, 0.0f);
 
   Vec3 still{0, 0, 0};  // at rest: nothing at all happens
-  const Vec3 x0 = velocity_update(k, kSkin, false, pre, post, pre, still);
+  const Vec3 x0 = update_abs(k, kSkin, false, pre, post, pre, still);
   EXPECT_EQ(still, (Vec3{0, 0, 0}));
   EXPECT_EQ(x0, post);
 }
@@ -146,7 +152,7 @@ TEST(DeadZone, JustAboveEpsilonDrivesVelocity) {
   // dX = 1.001e-3 * (0.6, 0.8, 0) = (6.006e-4, 8.008e-4, 0): |dX| = 1.001e-3 >= eps.
   const Vec3 pre{0, 0, 0}, post{0.6f * 1.001e-3f, 0.8f * 1.001e-3f, 0};
   Vec3 v{0.1f, 0, 0};
-  const Vec3 x = velocity_update(k, kSkin, false, pre, post, pre, v);
+  const Vec3 x = update_abs(k, kSkin, false, pre, post, pre, v);
   // V = 0.85 * (0.1, 0, 0) + 1 * (6.006e-4, 8.008e-4, 0) = (0.0856006, 0.0008008, 0)
   EXPECT_VEC_NEAR(v, 0.0856006f, 0.0008008f, 0.0f);
   EXPECT_VEC_NEAR(x, 0.0006006f + 0.0856006f, 0.0008008f + 0.0008008f, 0.0f);
@@ -158,7 +164,7 @@ TEST(DeadZone, ZeroDisablesIt) {
   const LayerConstants k = K(p);
   const Vec3 pre{0, 0, 0}, post{1e-6f, 0, 0};
   Vec3 v{0, 0, 0};
-  velocity_update(k, kSkin, false, pre, post, pre, v);
+  update_abs(k, kSkin, false, pre, post, pre, v);
   EXPECT_FLOAT_EQ(v.x, 1e-6f);  // V = 0 * 0 + 1 * 1e-6
 }
 
@@ -169,7 +175,7 @@ TEST(SimpleMode, AlphaUpdateSkinAndMuscle) {
   const Vec3 pre{1, 2, 3}, post{1.25f, 1.875f, 3.0625f};  // dX = (0.25, -0.125, 0.0625) exactly
   const Vec3 v0{0.1f, -0.2f, 0.05f};
   Vec3 v = v0;
-  Vec3 x = velocity_update(k, kSkin, false, pre, post, pre, v);
+  Vec3 x = update_abs(k, kSkin, false, pre, post, pre, v);
   // skin, s = 1: V = 0.85*(0.1, -0.2, 0.05) + (0.25, -0.125, 0.0625)
   //               = (0.085 + 0.25, -0.17 - 0.125, 0.0425 + 0.0625) = (0.335, -0.295, 0.105)
   // |V| = sqrt(0.112225 + 0.087025 + 0.011025) = 0.4586 < v_max: no clamp
@@ -178,7 +184,7 @@ TEST(SimpleMode, AlphaUpdateSkinAndMuscle) {
   EXPECT_VEC_NEAR(x, 1.585f, 1.58f, 3.1675f);
 
   v = v0;
-  x = velocity_update(k, kMuscle, false, pre, post, pre, v);
+  x = update_abs(k, kMuscle, false, pre, post, pre, v);
   // muscle, s = 0.15: V = (0.085 + 0.0375, -0.17 - 0.01875, 0.0425 + 0.009375)
   //                     = (0.1225, -0.18875, 0.051875)
   EXPECT_VEC_NEAR(v, 0.1225f, -0.18875f, 0.051875f);
@@ -188,10 +194,10 @@ TEST(SimpleMode, AlphaUpdateSkinAndMuscle) {
 TEST(SimpleMode, AlphaBounds) {
   const Vec3 pre{1, 2, 3}, post{1.25f, 1.875f, 3.0625f};
   Vec3 v{0.1f, -0.2f, 0.05f};
-  velocity_update(K(simple_params(0.0f)), kSkin, false, pre, post, pre, v);
+  update_abs(K(simple_params(0.0f)), kSkin, false, pre, post, pre, v);
   EXPECT_VEC_NEAR(v, 0.25f, -0.125f, 0.0625f);  // alpha 0: V = s*dX, no memory
   v = {0.1f, -0.2f, 0.05f};
-  velocity_update(K(simple_params(1.0f)), kSkin, false, pre, post, pre, v);
+  update_abs(K(simple_params(1.0f)), kSkin, false, pre, post, pre, v);
   EXPECT_VEC_NEAR(v, 0.35f, -0.325f, 0.1125f);  // alpha 1: V = V + s*dX, no damping
 }
 
@@ -204,7 +210,7 @@ TEST(ViscoelasticMode, DivisionUsesFrameStartDisplacement) {
   const Vec3 post{4.25f, 5.875f, 3.0625f};          // dX = (0.25, -0.125, 0.0625)
   const Vec3 v0{0.1f, -0.2f, 0.05f};
   Vec3 v = v0;
-  Vec3 x = velocity_update(k, kSkin, false, pre, post, rest, v);
+  Vec3 x = update_abs(k, kSkin, false, pre, post, rest, v);
   // V~ = (0.1 + 0.25, -0.2 - 0.125, 0.05 + 0.0625) = (0.35, -0.325, 0.1125)
   // skin: denominator 1 + b0 + b1*|X- - X0| = 1 + 0.15 + 0.5*5 = 3.65
   // V = V~ / 3.65 = (0.0958904, -0.0890411, 0.0308219)
@@ -215,7 +221,7 @@ TEST(ViscoelasticMode, DivisionUsesFrameStartDisplacement) {
   // is 1 + 0.15 + 0.5*0 = 1.15 however far X+ lies from rest.
   v = v0;
   const Vec3 post2{1.25f, 1.875f, 3.0625f};  // dX = (0.25, -0.125, 0.0625) again
-  velocity_update(k, kSkin, false, rest, post2, rest, v);
+  update_abs(k, kSkin, false, rest, post2, rest, v);
   EXPECT_VEC_NEAR(v, 0.35f / 1.15f, -0.325f / 1.15f, 0.1125f / 1.15f);
 }
 
@@ -229,7 +235,7 @@ TEST(ViscoelasticMode, AirHasNoDisplacementTerm) {
   for (const Vec3 off : {Vec3{0, 0, 0}, Vec3{3, 4, 0}, Vec3{-1, 0.5f, 2}}) {
     Vec3 v{0.1f, -0.2f, 0.05f};
     const Vec3 pre = rest + off;
-    velocity_update(k, kAir, false, pre, pre + dx, rest, v);
+    update_abs(k, kAir, false, pre, pre + dx, rest, v);
     EXPECT_VEC_NEAR(v, 0.35f / 1.15f, -0.325f / 1.15f, 0.1125f / 1.15f);
   }
 }
@@ -249,7 +255,7 @@ TEST(ViscoelasticMode, NeverFlipsSignNeverGrows) {
     Vec3 v{2 * u(rng), 2 * u(rng), 2 * u(rng)};
     const float s = k.s[t];
     const Vec3 vt{v.x + s * (post.x - pre.x), v.y + s * (post.y - pre.y), v.z + s * (post.z - pre.z)};
-    velocity_update(k, t, false, pre, post, rest, v);
+    update_abs(k, t, false, pre, post, rest, v);
     for (int a = 0; a < 3; ++a) {
       EXPECT_GE(v[a] * vt[a], 0.0f) << "sign flipped, sample " << n;
       EXPECT_LE(std::fabs(v[a]), std::fabs(vt[a])) << "grew, sample " << n;
@@ -264,7 +270,7 @@ TEST(VelocityClamp, ScalesToVmaxKeepingDirection) {
   const Vec3 pre{0, 0, 0};
   Vec3 v{};
   // dX = (0.6, 0.8, 0), |dX| = 1 > 0.5: V = 0.5 * (0.6, 0.8, 0) = (0.3, 0.4, 0)
-  Vec3 x = velocity_update(k, kSkin, false, pre, Vec3{0.6f, 0.8f, 0}, pre, v);
+  Vec3 x = update_abs(k, kSkin, false, pre, Vec3{0.6f, 0.8f, 0}, pre, v);
   EXPECT_VEC_NEAR(v, 0.3f, 0.4f, 0.0f);
   EXPECT_VEC_NEAR(x, 0.9f, 1.2f, 0.0f);
 
@@ -272,7 +278,7 @@ TEST(VelocityClamp, ScalesToVmaxKeepingDirection) {
   // V = dX * 0.5 / 1.5811388 = (-0.3794733, 0.1581139, -0.2846050)
   v = {};
   const Vec3 dx{-1.2f, 0.5f, -0.9f};
-  velocity_update(k, kSkin, false, pre, dx, pre, v);
+  update_abs(k, kSkin, false, pre, dx, pre, v);
   EXPECT_VEC_NEAR(v, -0.3794733f, 0.1581139f, -0.2846050f);
   EXPECT_NEAR(norm(v), 0.5f, kTol);
   // Same direction: V x dX = 0 and V . dX > 0.
@@ -283,7 +289,7 @@ TEST(VelocityClamp, ScalesToVmaxKeepingDirection) {
 
   // Below v_max nothing changes: |(0.29, 0.4, 0)| = 0.494 < 0.5.
   v = {};
-  velocity_update(k, kSkin, false, pre, Vec3{0.29f, 0.4f, 0}, pre, v);
+  update_abs(k, kSkin, false, pre, Vec3{0.29f, 0.4f, 0}, pre, v);
   EXPECT_EQ(v, (Vec3{0.29f, 0.4f, 0}));
 }
 
@@ -293,7 +299,7 @@ TEST(VelocityClamp, AppliesAfterViscoelasticDivision) {
   const Vec3 rest{0, 0, 0};
   Vec3 v{0.9f, 0, 0};
   // V~ = (0.9 + 0.25, 0, 0) = (1.15, 0, 0); air denominator 1.15 -> V = (1, 0, 0); clamp -> 0.5
-  velocity_update(k, kAir, false, rest, Vec3{0.25f, 0, 0}, rest, v);
+  update_abs(k, kAir, false, rest, Vec3{0.25f, 0, 0}, rest, v);
   EXPECT_VEC_NEAR(v, 0.5f, 0.0f, 0.0f);
 }
 
@@ -306,7 +312,7 @@ TEST(NoDynamics, BoneWithZeroInverseMassStaysStill) {
     ASSERT_EQ(k.inv_mass[kBone], 0.0f);
     Vec3 v{0.3f, 0.1f, 0};
     const Vec3 pre{1, 2, 3}, post{1.25f, 1.875f, 3.0625f};
-    const Vec3 x = velocity_update(k, kBone, false, pre, post, pre, v);
+    const Vec3 x = update_abs(k, kBone, false, pre, post, pre, v);
     EXPECT_EQ(v, (Vec3{0, 0, 0}));
     EXPECT_EQ(x, post);  // X = X+ exactly
   }
@@ -317,7 +323,7 @@ TEST(NoDynamics, BoneWithSmallInverseMassMoves) {
   p.inverse_mass = {1.0f, 1.0f, 0.15f, 0.01f};  // s_bone = 0.01
   const LayerConstants k = K(p);
   Vec3 v{0.1f, 0, 0};
-  velocity_update(k, kBone, false, Vec3{1, 2, 3}, Vec3{1.25f, 2, 3}, Vec3{1, 2, 3}, v);
+  update_abs(k, kBone, false, Vec3{1, 2, 3}, Vec3{1.25f, 2, 3}, Vec3{1, 2, 3}, v);
   EXPECT_VEC_NEAR(v, 0.085f + 0.0025f, 0.0f, 0.0f);  // 0.85*0.1 + 0.01*0.25
 }
 
@@ -326,7 +332,7 @@ TEST(NoDynamics, FixedElementStaysStill) {
     const LayerConstants k = K(p);
     Vec3 v{0.3f, 0.1f, 0};
     const Vec3 pre{1, 2, 3}, post{1.25f, 1.875f, 3.0625f};
-    const Vec3 x = velocity_update(k, kSkin, true, pre, post, pre, v);
+    const Vec3 x = update_abs(k, kSkin, true, pre, post, pre, v);
     EXPECT_EQ(v, (Vec3{0, 0, 0}));
     EXPECT_EQ(x, post);
   }
@@ -338,7 +344,7 @@ TEST(NoDynamics, ConditionAIsPlainChainMail) {
   const LayerConstants k = K(p);
   Vec3 v{0.3f, 0.1f, 0};
   const Vec3 pre{1, 2, 3}, post{1.25f, 1.875f, 3.0625f};
-  const Vec3 x = velocity_update(k, kSkin, false, pre, post, pre, v);
+  const Vec3 x = update_abs(k, kSkin, false, pre, post, pre, v);
   EXPECT_EQ(v, (Vec3{0, 0, 0}));
   EXPECT_EQ(x, post);
 }
@@ -352,14 +358,14 @@ TEST(PositionUpdate, BetaTimesRho) {
   const LayerConstants k = K(p);
   const Vec3 pre{1, 2, 3}, post{1.25f, 1.875f, 3.0625f};  // dX = (0.25, -0.125, 0.0625)
   Vec3 v{};
-  Vec3 x = velocity_update(k, kSkin, false, pre, post, pre, v);
+  Vec3 x = update_abs(k, kSkin, false, pre, post, pre, v);
   // V = dX; gain = beta*rho_skin = 0.5*1.5 = 0.75: X = X+ + 0.75*dX
   //   = (1.25 + 0.1875, 1.875 - 0.09375, 3.0625 + 0.046875) = (1.4375, 1.78125, 3.109375)
   EXPECT_VEC_NEAR(v, 0.25f, -0.125f, 0.0625f);
   EXPECT_VEC_NEAR(x, 1.4375f, 1.78125f, 3.109375f);
 
   v = {};
-  x = velocity_update(k, kMuscle, false, pre, post, pre, v);
+  x = update_abs(k, kMuscle, false, pre, post, pre, v);
   // muscle: V = 0.15*dX = (0.0375, -0.01875, 0.009375); gain 0.5*0.5 = 0.25
   //   X = (1.25 + 0.009375, 1.875 - 0.0046875, 3.0625 + 0.00234375)
   EXPECT_VEC_NEAR(v, 0.0375f, -0.01875f, 0.009375f);
@@ -367,7 +373,7 @@ TEST(PositionUpdate, BetaTimesRho) {
 
   p.beta = 0.0f;  // beta 0: the velocity is kept but does not move the element
   v = {};
-  x = velocity_update(K(p), kSkin, false, pre, post, pre, v);
+  x = update_abs(K(p), kSkin, false, pre, post, pre, v);
   EXPECT_VEC_NEAR(v, 0.25f, -0.125f, 0.0625f);
   EXPECT_EQ(x, post);
 }
@@ -380,16 +386,33 @@ TEST(BoundaryClamp, PositionsClampedVelocityKept) {
   const LayerConstants k = K(p);  // box [-2, 11] x [-2, 13] x [-2, 9]
   const Vec3 pre{10.5f, -1.5f, 4.0f}, post{10.875f, -1.875f, 4.25f};  // dX = (0.375, -0.375, 0.25)
   Vec3 v{};
-  const Vec3 x = velocity_update(k, kSkin, false, pre, post, pre, v);
+  const Vec3 x = update_abs(k, kSkin, false, pre, post, pre, v);
   // X = X+ + dX = (11.25, -2.25, 4.5) -> clamped to (11, -2, 4.5); V itself is not changed.
   EXPECT_VEC_NEAR(v, 0.375f, -0.375f, 0.25f);
   EXPECT_EQ(x, (Vec3{11.0f, -2.0f, 4.5f}));
 
   // The clamp applies to every element, also those without dynamics.
   Vec3 vb{};
-  EXPECT_EQ(velocity_update(k, kBone, false, post, Vec3{12.5f, 14.0f, -3.0f}, post, vb), (Vec3{11.0f, 13.0f, -2.0f}));
+  EXPECT_EQ(update_abs(k, kBone, false, post, Vec3{12.5f, 14.0f, -3.0f}, post, vb), (Vec3{11.0f, 13.0f, -2.0f}));
 
   p.margin = 0.0f;  // margin 0: box [0, N-1]
   Vec3 v0{};
-  EXPECT_EQ(velocity_update(K(p), kSkin, false, pre, post, pre, v0), (Vec3{9.0f, 0.0f, 4.5f}));
+  EXPECT_EQ(update_abs(K(p), kSkin, false, pre, post, pre, v0), (Vec3{9.0f, 0.0f, 4.5f}));
+}
+
+// On displacements the wall is the element's own interval [-m - X0, N - 1 + m - X0]: an element
+// at lattice x = 1000 of a 1024-cell axis may move 25 cells (margin 2) toward +x, not more, and
+// the bound is exact (no float step of the coordinate 1000 in it).
+TEST(BoundaryClamp, OnDisplacementsTheBoundsAreTheElementsOwn) {
+  DynamicsParams p = simple_params(0.0f);
+  p.margin = 2.0f;
+  const LayerConstants k = make_constants(p, Int3{1024, 48, 32});
+  const Vec3 rest{1000.0f, 3.0f, 0.0f};
+  Vec3 v{};
+  // u+ = (30, -7, 0.25): beyond the +x wall and below the -y wall.
+  const Vec3 u = dynamics::velocity_update(k, kBone, false, Vec3{}, Vec3{30.0f, -7.0f, 0.25f}, rest, v);
+  EXPECT_EQ(u, (Vec3{25.0f, -5.0f, 0.25f}));
+  // Within the wall nothing is clamped, to the bit: a displacement of a float step at 1e-6.
+  const Vec3 small{1e-6f, -3e-7f, 2e-7f};
+  EXPECT_EQ(dynamics::velocity_update(k, kBone, false, small, small, rest, v), small);
 }

@@ -2,9 +2,10 @@
 // under the paper protocol's first 40 frames, as `hpcm run --downsample 2 --dynamics MODE` plays
 // them: the pull reaches the tool limit (frames 5-29), where a chain from the grabbed elements
 // is stretched to its slack. Every ChainMail stage must leave every link within the
-// restoration's tolerance (SPEC §8.7). Condition B left 1.73e-5 in frames 11 and 13-18 when
-// the restoration's last one-sided pass "restored" a link the stage had left within the
-// tolerance (solver/restore.hpp, left_as_placed). Skipped when the data is absent.
+// restoration's tolerance (SPEC §8.7). With absolute positions, condition B left 1.73e-5 in
+// frames 11 and 13-18 when the restoration's last one-sided pass "restored" a link the stage had
+// left within the tolerance; positions are now displacements from rest (docs/solver.md,
+// "Displacements from rest"). Skipped when the data is absent.
 #include <gtest/gtest.h>
 
 #include <algorithm>

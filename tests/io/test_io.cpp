@@ -114,11 +114,8 @@ io::Input input_of(const Volume& stored, int f = 1, std::optional<io::Box> roi =
   return io::prepare_input(stored, opt, "synthetic");
 }
 
-std::vector<Vec3> rest_positions(const Model& m) {
-  std::vector<Vec3> p(static_cast<std::size_t>(m.size()));
-  for (Index i = 0; i < m.size(); ++i) p[i] = m.rest(i);
-  return p;
-}
+/// The rest state's displacements (u = 0): what the exports take.
+std::vector<Vec3> rest_positions(const Model& m) { return std::vector<Vec3>(static_cast<std::size_t>(m.size())); }
 
 void expect_same_geometry(const Volume& a, const Volume& b, double tol) {
   EXPECT_EQ(a.dims, b.dims);
@@ -336,7 +333,7 @@ TEST(Export, DisplacementFieldSignAndMillimetres) {
   EXPECT_NE(header.find("\ndisplacement field type:=modeling\n"), std::string::npos) << header.substr(0, 600);
   expect_error([&] { io::write_displacement_field(in, m, pos, s / "disp.nhdr"); }, "disp.nhdr", "unsupported extension");
   pos.pop_back();
-  EXPECT_NE(error_of([&] { io::write_displacement_field(in, m, pos, s / "short.nrrd"); }).find("positions"), std::string::npos);
+  EXPECT_NE(error_of([&] { io::write_displacement_field(in, m, pos, s / "short.nrrd"); }).find("displacements"), std::string::npos);
   // A model that is not this input's lattice is refused, naming both sizes.
   const Model other = model_from(make_volume({5, 5, 4}, true));
   const std::string msg = error_of([&] { io::write_displacement_field(in, other, rest_positions(other), s / "x.nrrd"); });

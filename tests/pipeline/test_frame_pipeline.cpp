@@ -44,7 +44,7 @@ Params no_relax_params() {
 /// The rest state with element `e` displaced by `d` (links around it violated).
 State displaced_state(const Model& m, Index e, Vec3 d) {
   State s = State::rest(m);
-  s.pos[e] = s.pos[e] + d;
+  s.disp[e] = s.disp[e] + d;
   return s;
 }
 
@@ -138,7 +138,7 @@ TEST(FramePipeline, PaperProtocolFramesOnPhantom) {
 
   Simulation sim(m, p);
   ScenarioPlayer player(sc, sim);
-  std::vector<Vec3> prev = sim.state().pos;
+  std::vector<Vec3> prev = sim.state().disp;
   int frame = 0, moving_after_release = 0;
   while (!player.done()) {
     const FrameReport r = player.step();
@@ -161,7 +161,7 @@ TEST(FramePipeline, PaperProtocolFramesOnPhantom) {
     std::array<Index, kTissueCount> count{};
     Index moved = 0;
     for (Index i = 0; i < m.size(); ++i) {
-      const float sp = norm(s.pos[i] - prev[i]);
+      const float sp = norm(s.disp[i] - prev[i]);
       if (sp > 0) ++moved;
       if (!m.counted(i)) continue;
       sum[m.tissue[i]] += sp;
@@ -180,7 +180,7 @@ TEST(FramePipeline, PaperProtocolFramesOnPhantom) {
     EXPECT_GE(r.inertia_ms, 0.0);
     EXPECT_GE(r.snapshot_ms, 0.0);
     EXPECT_NEAR(r.sim_total_ms, r.chainmail_ms + r.inertia_ms + r.snapshot_ms, 1e-9);
-    prev = s.pos;
+    prev = s.disp;
     ++frame;
   }
   // The residual motion after release is what the idle stage must preserve.
@@ -216,11 +216,11 @@ TEST(FramePipeline, BitwiseReproducibleRunToRunAndAcrossThreads) {
     ref_reports.push_back(r);
   });
   ASSERT_EQ(ref.size(), 60u);
-  const std::size_t n = ref[0].pos.size();
+  const std::size_t n = ref[0].disp.size();
   for (int threads : {2, 1}) {
     int mismatched = 0;
     run(threads, [&](int f, const State& s, const FrameReport& r) {
-      const bool same = std::memcmp(s.pos.data(), ref[f].pos.data(), n * sizeof(Vec3)) == 0 &&
+      const bool same = std::memcmp(s.disp.data(), ref[f].disp.data(), n * sizeof(Vec3)) == 0 &&
                         std::memcmp(s.vel.data(), ref[f].vel.data(), n * sizeof(Vec3)) == 0 &&
                         std::memcmp(s.time.data(), ref[f].time.data(), n * sizeof(float)) == 0 &&
                         std::memcmp(r.mean_speed.data(), ref_reports[f].mean_speed.data(), sizeof(PerTissue)) == 0 &&
@@ -233,7 +233,7 @@ TEST(FramePipeline, BitwiseReproducibleRunToRunAndAcrossThreads) {
   // The run did something after release: otherwise equality would be trivial.
   float moved = 0, vmax = 0;
   for (std::size_t i = 0; i < n; ++i) {
-    moved = std::max(moved, norm(ref.back().pos[i] - ref[15].pos[i]));
+    moved = std::max(moved, norm(ref.back().disp[i] - ref[15].disp[i]));
     vmax = std::max(vmax, norm(ref[20].vel[i]));
   }
   EXPECT_GT(moved, 0.01f);
@@ -264,13 +264,13 @@ TEST(FramePipeline, RelaxationGivesTheSameBitsWhicheverThreadRunsAPlane) {
       return s;
     };
     const State ref = run(1);
-    const std::size_t n = ref.pos.size();
+    const std::size_t n = ref.disp.size();
     float moved = 0;
-    for (std::size_t i = 0; i < n; ++i) moved = std::max(moved, norm(ref.pos[i] - m.rest(static_cast<Index>(i))));
+    for (std::size_t i = 0; i < n; ++i) moved = std::max(moved, norm(ref.disp[i]));
     EXPECT_GT(moved, 0.01f) << sweeps << " sweeps: the run must move the tissue";
     for (int threads : {2, 3, 7, 2, 2}) {
       const State s = run(threads);
-      EXPECT_EQ(std::memcmp(s.pos.data(), ref.pos.data(), n * sizeof(Vec3)), 0) << sweeps << " sweeps, " << threads << " threads";
+      EXPECT_EQ(std::memcmp(s.disp.data(), ref.disp.data(), n * sizeof(Vec3)), 0) << sweeps << " sweeps, " << threads << " threads";
       EXPECT_EQ(std::memcmp(s.vel.data(), ref.vel.data(), n * sizeof(Vec3)), 0) << sweeps << " sweeps, " << threads << " threads";
     }
   }
@@ -302,7 +302,7 @@ TEST(FramePipeline, ManyShortRelaxationsWithMoreThreadsThanCoresNeitherHangNorDi
   const State ref = run(1);
   for (int threads : {2, 4}) {
     const State s = run(threads);
-    EXPECT_EQ(std::memcmp(s.pos.data(), ref.pos.data(), ref.pos.size() * sizeof(Vec3)), 0) << threads << " threads";
+    EXPECT_EQ(std::memcmp(s.disp.data(), ref.disp.data(), ref.disp.size() * sizeof(Vec3)), 0) << threads << " threads";
   }
   omp_set_num_threads(saved);
 }
@@ -338,21 +338,21 @@ TEST(FramePipeline, SimdPathsBitwiseIdentical) {
     std::vector<State> sse2;
     run("sse2", sse2);
     ASSERT_EQ(sse2.size(), 60u);
-    const std::size_t n = sse2[0].pos.size();
+    const std::size_t n = sse2[0].disp.size();
     for (const char* name : wide) {
       std::vector<State> other;
       run(name, other);
       ASSERT_EQ(other.size(), sse2.size());
       int first_diff = -1;
       for (std::size_t f = 0; f < sse2.size() && first_diff < 0; ++f)
-        if (std::memcmp(sse2[f].pos.data(), other[f].pos.data(), n * sizeof(Vec3)) != 0 ||
+        if (std::memcmp(sse2[f].disp.data(), other[f].disp.data(), n * sizeof(Vec3)) != 0 ||
             std::memcmp(sse2[f].vel.data(), other[f].vel.data(), n * sizeof(Vec3)) != 0)
           first_diff = static_cast<int>(f);
       EXPECT_EQ(first_diff, -1) << dims.x << "x" << dims.y << "x" << dims.z << ": SSE2 and " << name
                                 << " differ from frame " << first_diff;
     }
     float moved = 0;
-    for (std::size_t i = 0; i < n; ++i) moved = std::max(moved, norm(sse2.back().pos[i] - sse2[15].pos[i]));
+    for (std::size_t i = 0; i < n; ++i) moved = std::max(moved, norm(sse2.back().disp[i] - sse2[15].disp[i]));
     EXPECT_GT(moved, 0.01f) << "the run must move after release, or equality is trivial";
   }
 }
@@ -455,17 +455,17 @@ TEST(Body, StatisticsCountTheBodyOnlyAndTheTableIsAnchored) {
   double air_moved = 0;
   for (int f = 0; f < 6; ++f) {
     sim.move_tool({0.0f, -0.4f * static_cast<float>(f + 1), 0.0f});
-    const std::vector<Vec3> before = sim.state().pos;
+    const std::vector<Vec3> before = sim.state().disp;
     const FrameReport r = sim.step();
     const State& s = sim.state();
     double skin_sum = 0;
     float skin_max = 0;
     for (Index i = 0; i < m.size(); ++i) {
-      const float sp = norm(s.pos[i] - before[i]);
+      const float sp = norm(s.disp[i] - before[i]);
       if (m.region[i] == std::uint8_t(Region::OutsideAir)) air_moved = std::max<double>(air_moved, sp);
       if (m.outside_object(i)) {
         EXPECT_TRUE(s.flags[i] & kAnchor) << "table element " << i << " is not anchored";
-        EXPECT_EQ(s.pos[i], m.rest(i)) << "table element " << i << " moved";
+        EXPECT_EQ(s.disp[i], Vec3{}) << "table element " << i << " moved";
       }
       if (m.counted(i) && m.tissue[i] == skin) {
         skin_sum += sp;

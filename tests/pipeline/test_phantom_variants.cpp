@@ -157,13 +157,13 @@ TEST_P(PhantomVariantExperiment, ChecksHoldWithDefaults) {
   // is on: the sign of its offset along the offset it had at release).
   const ConditionResult& a = r.conditions[0];
   ASSERT_EQ(a.label, "A");
-  ASSERT_GT(static_cast<int>(a.centre_track.size()), r.release_frame);
-  const Vec3 at_release = a.centre_track[r.release_frame - 1] - a.centre_rest;
+  ASSERT_GT(static_cast<int>(a.centre_displacement.size()), r.release_frame);
+  const Vec3 at_release = a.centre_displacement[r.release_frame - 1];
   float worst_increase = 0, worst_past_rest = 0, dist_at_release = norm(at_release);
-  for (int f = r.release_frame; f < static_cast<int>(a.centre_track.size()); ++f) {
-    const float prev = norm(a.centre_track[f - 1] - a.centre_rest), cur = norm(a.centre_track[f] - a.centre_rest);
+  for (int f = r.release_frame; f < static_cast<int>(a.centre_displacement.size()); ++f) {
+    const float prev = norm(a.centre_displacement[f - 1]), cur = norm(a.centre_displacement[f]);
     worst_increase = std::max(worst_increase, cur - prev);
-    worst_past_rest = std::max(worst_past_rest, -dot(a.centre_track[f] - a.centre_rest, at_release) / dist_at_release);
+    worst_past_rest = std::max(worst_past_rest, -dot(a.centre_displacement[f], at_release) / dist_at_release);
   }
   std::printf("  A: grab centre %.4f from rest at release, largest frame-to-frame increase after it %.3g, largest "
               "distance past rest %.3g; pull achieved %.3f of %.3f requested\n",

@@ -54,7 +54,7 @@ Pull play(const Model& m, const Scenario& sc) {
   EXPECT_TRUE(sim.grabbing());
   Pull p{};
   const Index c = sim.grab_centre();
-  const Vec3 d = sim.state().pos[static_cast<std::size_t>(c)] - State::rest(m).pos[static_cast<std::size_t>(c)];
+  const Vec3 d = sim.state().disp[static_cast<std::size_t>(c)];
   const Int3 cc = m.coords(c);
   for (int a = 0; a < 3; ++a) p.centre_mm[a] = d[a] * m.spacing[a];
   for (Index g : sim.grabbed()) {

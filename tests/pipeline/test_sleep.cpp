@@ -51,7 +51,7 @@ TEST(Sleep, WithinOneThousandthOfTheAwakeReferenceAndComesToRest) {
     for (int f = 0; f < frames; ++f) {
       const FrameReport ra = pa.done() ? a.step() : pa.step();
       const FrameReport rb = pb.done() ? b.step() : pb.step();
-      worst = std::max(worst, max_diff(a.state().pos, b.state().pos));
+      worst = std::max(worst, max_diff(a.state().disp, b.state().disp));
       if (ra.active_bricks == 0) ++idle_frames;
       awake_min = std::min(awake_min, rb.active_elements);
     }

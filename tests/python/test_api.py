@@ -119,12 +119,15 @@ def test_grab_move_step_and_arrays(phantom):
     assert 0 <= report.max_link_violation < 1e-4
     assert set(report.to_dict()) >= {"frame", "mean_speed", "sim_total_ms"}
     x = sim.positions()
-    assert x.shape == SMALL + (3,) and x.dtype == np.float32
+    assert x.shape == SMALL + (3,) and x.dtype == np.float64
     # The grabbed elements sit exactly at rest + tool offset (lattice units, [x, y, z]).
     g = np.unravel_index(sim.grabbed, SMALL, order="F")
-    rest = np.stack(g, axis=-1).astype(np.float32)
-    np.testing.assert_array_equal(x[g], rest + np.float32([0, -1, 0]))
-    np.testing.assert_allclose(sim.displacement(), x - np.stack(np.indices(SMALL), axis=-1), atol=1e-5)
+    rest = np.stack(g, axis=-1).astype(np.float64)
+    np.testing.assert_array_equal(x[g], rest + np.float64([0, -1, 0]))
+    # The solver stores u = X - X0 (float32); X is X0 + u in double, so the difference is exact.
+    u = sim.displacement()
+    assert u.dtype == np.float32
+    np.testing.assert_array_equal(u.astype(np.float64), x - np.stack(np.indices(SMALL), axis=-1))
     # Model arrays are views without a copy, read-only.
     labels, hu = sim.labels, sim.hu
     assert not labels.flags.owndata and not labels.flags.writeable and labels.dtype == np.uint8
@@ -134,7 +137,7 @@ def test_grab_move_step_and_arrays(phantom):
     # millimetres: lattice units times spacing (identity direction for the phantom)
     np.testing.assert_allclose(sim.displacement_mm(), sim.displacement() * np.float32(sim.spacing), rtol=1e-6)
     st = sim.state()
-    np.testing.assert_array_equal(st.positions, x)
+    np.testing.assert_array_equal(st.displacements, u)
     assert st.flags[centre] & 2  # grabbed
     sim.release()
     assert not sim.grabbing and sim.grab_centre is None

@@ -255,7 +255,7 @@ def test_an_inputs_volumes_are_read_only_and_own_volumes_stay_writable():
 def test_simulation_and_state_arrays_are_read_only():
     sim = hpcm.Simulation(hpcm.phantom((24, 20, 16)))
     state = sim.state()
-    for a in (sim.hu, sim.labels, state.positions, state.velocities, state.time, state.flags):
+    for a in (sim.hu, sim.labels, state.displacements, state.velocities, state.time, state.flags):
         assert not a.flags.writeable
 
 

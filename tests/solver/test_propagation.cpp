@@ -18,7 +18,7 @@ using hpcm::reference::kInf;
 
 namespace {
 
-constexpr float kTau = 0.1f;  // uniform test material: min_d 0.92, max_d 1.1, shear 0.1
+constexpr float kTau = 0.1f;  // uniform test material: stretch in [-0.08, 0.1], shear 0.1
 constexpr float kW = 0.3f;
 constexpr int kLen = 12;      // chain length
 
@@ -57,15 +57,15 @@ TEST_P(Chain1D, EachLinkAbsorbsItsLimit) {
   const ChainCase c = GetParam();
   const Model m = build_model(test::make_volume(chain_dims(c.axis), [](int, int, int) { return 0.0f; }),
                               test::uniform_params(kTau, kW));
-  // Stretch: pull 0.8, each link lengthens to max_d = 1.1 (absorbs 0.1): 8 links move.
-  // Compression: push 0.4, each link shortens to min_d = 1 - 0.8 tau = 0.92 (absorbs 0.08): 5 links.
+  // Stretch: pull 0.8, each link lengthens by max_stretch = 0.1 (absorbs 0.1): 8 links move.
+  // Compression: push 0.4, each link shortens by -min_stretch = 0.8 tau = 0.08 (absorbs 0.08): 5 links.
   const float d = c.stretch ? 0.8f : 0.4f;
   const float absorb = c.stretch ? kTau : 0.8f * kTau;
   const int end_k = c.sign > 0 ? kLen - 1 : 0;
   const float dir = c.stretch ? float(c.sign) : -float(c.sign);  // direction of the pull on the axis
   const Index end = m.index(along(c.axis, end_k).x, along(c.axis, end_k).y, along(c.axis, end_k).z);
   test::WaveRunner run(m, test::propagation_params(), State::rest(m));
-  const State s = run.wave({end}, {m.rest(end) + unit(c.axis, dir * d)});
+  const State s = run.wave({end}, {unit(c.axis, dir * d)});
   ASSERT_TRUE(run.last.converged);
 
   const int stop = static_cast<int>(std::lround(d / absorb));  // links until the wave stops
@@ -74,18 +74,18 @@ TEST_P(Chain1D, EachLinkAbsorbsItsLimit) {
     const Int3 q = along(c.axis, idx_k);
     const Index i = m.index(q.x, q.y, q.z);
     const float moved = std::max(0.0f, d - absorb * float(k));
-    EXPECT_NEAR(s.pos[i][c.axis], float(idx_k) + dir * moved, 1e-5f) << "k=" << k;
+    EXPECT_NEAR(s.disp[i][c.axis], dir * moved, 1e-5f) << "k=" << k;
     for (int b = 0; b < 3; ++b)
-      if (b != c.axis) EXPECT_EQ(s.pos[i][b], 0.0f) << "off-axis coordinate moved, k=" << k;
+      if (b != c.axis) EXPECT_EQ(s.disp[i][b], 0.0f) << "off-axis coordinate moved, k=" << k;
     if (k > 0 && k < stop) EXPECT_NEAR(s.time[i], kW * float(k), 1e-5f) << "arrival time, k=" << k;
     if (k > stop) {  // beyond the stop: untouched, bit-identical, never reached
-      EXPECT_EQ(s.pos[i], m.rest(i)) << "k=" << k;
+      EXPECT_EQ(s.disp[i], Vec3{}) << "k=" << k;
       EXPECT_EQ(s.time[i], kInf) << "k=" << k;
     }
   }
-  EXPECT_EQ(s.pos[end], m.rest(end) + unit(c.axis, dir * d));  // the grabbed element sits at its target
+  EXPECT_EQ(s.disp[end], unit(c.axis, dir * d));  // the grabbed element sits at its target
   EXPECT_EQ(s.time[end], 0.0f);
-  EXPECT_LE(max_link_violation(m, s.pos), 1e-5f);
+  EXPECT_LE(max_link_violation(m, s.disp), 1e-5f);
 }
 
 INSTANTIATE_TEST_SUITE_P(AllAxesSigns, Chain1D,
@@ -106,15 +106,15 @@ TEST(Propagation, PerpendicularPullRespectsShear) {
       const Int3 q = along(axis, kLen - 1);
       const Index end = m.index(q.x, q.y, q.z);
       test::WaveRunner run(m, test::propagation_params(), State::rest(m));
-      const State s = run.wave({end}, {m.rest(end) + unit(b, 0.5f)});
+      const State s = run.wave({end}, {unit(b, 0.5f)});
       for (int k = 0; k < kLen; ++k) {
         const Int3 r = along(axis, kLen - 1 - k);
         const Index i = m.index(r.x, r.y, r.z);
-        EXPECT_NEAR(s.pos[i][b], std::max(0.0f, 0.5f - kTau * float(k)), 1e-5f) << "axis " << axis << " k=" << k;
-        EXPECT_EQ(s.pos[i][axis], float(kLen - 1 - k)) << "axial coordinate must stay";  // 1 is inside [0.92, 1.1]
-        if (k > 5) EXPECT_EQ(s.pos[i], m.rest(i));
+        EXPECT_NEAR(s.disp[i][b], std::max(0.0f, 0.5f - kTau * float(k)), 1e-5f) << "axis " << axis << " k=" << k;
+        EXPECT_EQ(s.disp[i][axis], 0.0f) << "axial coordinate must stay";  // stretch 0 is inside [-0.08, 0.1]
+        if (k > 5) EXPECT_EQ(s.disp[i], Vec3{});
       }
-      EXPECT_LE(max_link_violation(m, s.pos), 1e-5f);
+      EXPECT_LE(max_link_violation(m, s.disp), 1e-5f);
     }
 }
 
@@ -126,16 +126,16 @@ TEST(Propagation, BlockPullSatisfiesEveryLink) {
   for (const Vec3& d : pulls) {
     const std::vector<Index> g = test::ball(m, {6, 6, 6}, 1.5f);
     std::vector<Vec3> tg;
-    for (Index i : g) tg.push_back(m.rest(i) + d);
+    for (Index i : g) tg.push_back(d);
     test::WaveRunner run(m, test::propagation_params(), State::rest(m));
     const State s = run.wave(g, tg);
     ASSERT_TRUE(run.last.converged);
     EXPECT_GT(run.last.reached, 100);
-    EXPECT_LE(reference::upstream_link_violation(m, s.pos, s.time), 1e-5f);
-    EXPECT_LE(max_link_violation(m, s.pos), 1e-5f);
-    for (std::size_t k = 0; k < g.size(); ++k) EXPECT_EQ(s.pos[g[k]], tg[k]) << "grabbed element off target";
+    EXPECT_LE(reference::upstream_link_violation(m, s.disp, s.time), 1e-5f);
+    EXPECT_LE(max_link_violation(m, s.disp), 1e-5f);
+    for (std::size_t k = 0; k < g.size(); ++k) EXPECT_EQ(s.disp[g[k]], tg[k]) << "grabbed element off target";
     for (Index i = 0; i < m.size(); ++i)
-      if (s.time[i] == kInf) ASSERT_EQ(s.pos[i], m.rest(i)) << "unreached element " << i << " moved";
+      if (s.time[i] == kInf) ASSERT_EQ(s.disp[i], Vec3{}) << "unreached element " << i << " moved";
   }
 }
 
@@ -179,7 +179,7 @@ void expect_wave_equal(const Model& m, const std::vector<Vec3>& p0, const State&
   std::vector<Vec3> ref = p0;
   reference::DijkstraPropagator d(m);
   const Index reached = d.run(ref, fixed, targets);
-  const float diff = test::max_abs_diff(par.pos, ref);
+  const float diff = test::max_abs_diff(par.disp, ref);
   EXPECT_LE(diff, 1e-6f) << what;
   Index time_mismatch = 0, first = -1;
   for (Index i = 0; i < m.size(); ++i)
@@ -195,8 +195,8 @@ void expect_wave_equal(const Model& m, const std::vector<Vec3>& p0, const State&
   Index off_rule = 0;
   for (Index e = 0; e < m.size(); ++e) {
     if (is_fixed[e]) continue;
-    const auto r = reference::evaluate_rule(m, e, p0, par.pos, par.time);
-    if (!(r.time == par.time[e]) || !(r.pos == par.pos[e])) ++off_rule;
+    const auto r = reference::evaluate_rule(m, e, p0, par.disp, par.time);
+    if (!(r.time == par.time[e]) || !(r.pos == par.disp[e])) ++off_rule;
   }
   EXPECT_EQ(off_rule, 0) << what << ": elements of the parallel wave that the rule would change";
   EXPECT_EQ(par_reached, reached) << what;
@@ -213,15 +213,15 @@ TEST(Propagation, ParallelEqualsDijkstraReferenceOnRandomLattices) {
     // Wave 1 from rest, wave 2 from wave 1's result with a different pull.
     std::vector<Vec3> t1, t2;
     for (Index i : rc.grab) {
-      t1.push_back(m.rest(i) + rc.pull);
-      t2.push_back(m.rest(i) + rc.pull + Vec3{0.3f, -0.2f, 0.3f});
+      t1.push_back(rc.pull);
+      t2.push_back(rc.pull + Vec3{0.3f, -0.2f, 0.3f});
     }
     const State s1 = run.wave(rc.grab, t1);
     EXPECT_TRUE(run.last.converged) << "seed " << seed << " wave 1: " << run.last.sweeps << " sweeps";
-    expect_wave_equal(m, rest.pos, s1, rc.grab, t1, "seed " + std::to_string(seed) + " wave 1", run.last.reached);
+    expect_wave_equal(m, rest.disp, s1, rc.grab, t1, "seed " + std::to_string(seed) + " wave 1", run.last.reached);
     const State s2 = run.wave(rc.grab, t2);
     EXPECT_TRUE(run.last.converged) << "seed " << seed << " wave 2: " << run.last.sweeps << " sweeps";
-    expect_wave_equal(m, s1.pos, s2, rc.grab, t2, "seed " + std::to_string(seed) + " wave 2", run.last.reached);
+    expect_wave_equal(m, s1.disp, s2, rc.grab, t2, "seed " + std::to_string(seed) + " wave 2", run.last.reached);
     ++cases;
   }
   EXPECT_GE(cases, 50);
@@ -248,15 +248,15 @@ TEST(Propagation, NoSelfSupportingClusterRegression) {
   v.hu = hu;
   const Model m = build_model(v, Params{});
   const Index g = m.index(0, 4, 1);
-  const Vec3 t1 = m.rest(g) + Vec3{-1.6f, 0.6f, -1.5f};
+  const Vec3 t1 = Vec3{-1.6f, 0.6f, -1.5f};
   const Vec3 t2 = t1 + Vec3{0.5f, -0.3f, 0.3f};
   test::WaveRunner run(m, random_params(), State::rest(m));
   const State s1 = run.wave({g}, {t1});
   ASSERT_TRUE(run.last.converged);
-  expect_wave_equal(m, State::rest(m).pos, s1, {g}, {t1}, "wave 1", run.last.reached);
+  expect_wave_equal(m, State::rest(m).disp, s1, {g}, {t1}, "wave 1", run.last.reached);
   const State s2 = run.wave({g}, {t2});
   EXPECT_TRUE(run.last.converged) << run.last.sweeps << " sweeps";
-  expect_wave_equal(m, s1.pos, s2, {g}, {t2}, "wave 2", run.last.reached);
+  expect_wave_equal(m, s1.disp, s2, {g}, {t2}, "wave 2", run.last.reached);
   // Plain Jacobi sweeps cycled forever on this wave (a corner cluster kept re-moving itself);
   // the bucketed schedule converges to the Dijkstra result, checked above.
 }
@@ -271,7 +271,7 @@ TEST(Propagation, LoadedStateWithOldTimesStartsAFreshWave) {
   std::uniform_real_distribution<float> hu(-200.0f, 200.0f);
   const Model m = build_model(test::make_volume({40, 10, 10}, [&](int, int, int) { return hu(rng); }), Params{});
   const Index g1 = m.index(3, 5, 5), g2 = m.index(37, 5, 5);
-  const Vec3 t1 = m.rest(g1) + Vec3{-2.0f, 0.5f, 0.0f}, t2 = m.rest(g2) + Vec3{0.2f, 0.0f, 0.1f};
+  const Vec3 t1 = Vec3{-2.0f, 0.5f, 0.0f}, t2 = Vec3{0.2f, 0.0f, 0.1f};
   test::WaveRunner first(m, random_params(), State::rest(m));
   State s1 = first.wave({g1}, {t1});
   Index finite = 0;
@@ -281,7 +281,7 @@ TEST(Propagation, LoadedStateWithOldTimesStartsAFreshWave) {
   s1.flags.assign(s1.flags.size(), 0);
   test::WaveRunner second(m, random_params(), s1);
   const State s2 = second.wave({g2}, {t2});
-  expect_wave_equal(m, s1.pos, s2, {g2}, {t2}, "wave after load", second.last.reached);
+  expect_wave_equal(m, s1.disp, s2, {g2}, {t2}, "wave after load", second.last.reached);
 }
 
 // --- a stiff bar in soft tissue moves rigidly ------------------------------------------------
@@ -296,19 +296,19 @@ Model bar_model() {
 
 void expect_bar_rigid(const Model& m, const std::vector<Vec3>& pos, Vec3 pull, const std::string& what) {
   const LinkLimits bone = m.link(0, m.index(kBarLo, 4, 4));
-  ASSERT_LT(bone.max_d - 1.0f, 0.01f) << "the bar must be stiff (bone tau)";
+  ASSERT_LT(bone.max_stretch, 0.01f) << "the bar must be stiff (bone tau)";
   float worst = 0;
   for (int x = kBarLo; x < kBarHi; ++x) worst = std::max(worst, reference::link_violation(m, m.index(x, 4, 4), 0, pos));
   EXPECT_LE(worst, 1e-5f) << what << ": bar-internal link outside the bar's limits";
   // Rigid: every bar element follows the pulled end within the accumulated bar tolerance.
   const Index end = m.index(kBarHi, 4, 4);
-  const float slack = float(kBarHi - kBarLo) * bone.max_d - float(kBarHi - kBarLo) + 1e-4f;
+  const float slack = float(kBarHi - kBarLo) * bone.max_stretch + 1e-4f;
   for (int x = kBarLo; x <= kBarHi; ++x) {
     const Index i = m.index(x, 4, 4);
-    const Vec3 disp = pos[i] - m.rest(i);
+    const Vec3 disp = pos[i];
     for (int b = 0; b < 3; ++b) EXPECT_NEAR(disp[b], pull[b], slack + 1e-4f) << what << " x=" << x << " axis " << b;
   }
-  EXPECT_EQ(pos[end], m.rest(end) + pull);
+  EXPECT_EQ(pos[end], pull);
 }
 
 TEST(Propagation, StiffBarMovesRigidly) {
@@ -316,11 +316,11 @@ TEST(Propagation, StiffBarMovesRigidly) {
   const Index end = m.index(kBarHi, 4, 4);
   for (const Vec3 pull : {Vec3{1.5f, 0, 0}, Vec3{0, 1.0f, 0}, Vec3{-0.8f, 0, 0.6f}}) {
     test::WaveRunner run(m, test::propagation_params(), State::rest(m));
-    const State s = run.wave({end}, {m.rest(end) + pull});
-    expect_bar_rigid(m, s.pos, pull, "propagation");
+    const State s = run.wave({end}, {pull});
+    expect_bar_rigid(m, s.disp, pull, "propagation");
     // The soft tissue around lags behind: it moves less than the bar.
     const Index soft = m.index(kBarLo, 1, 4);
-    EXPECT_LT(norm(s.pos[soft] - m.rest(soft)), 0.9f * norm(pull));
+    EXPECT_LT(norm(s.disp[soft]), 0.9f * norm(pull));
   }
 }
 
@@ -334,7 +334,7 @@ TEST(Propagation, LargeBucketsSplitAmongThreadsEqualTheReference) {
   const Model m = build_model(test::make_volume({40, 40, 40}, [](int, int, int) { return 50.0f; }), test::propagation_params());
   const std::vector<Index> grab = test::ball(m, {20, 20, 20}, 10.0f);
   std::vector<Vec3> targets;
-  for (Index i : grab) targets.push_back(m.rest(i) + Vec3{0.6f, -0.9f, 0.4f});
+  for (Index i : grab) targets.push_back(Vec3{0.6f, -0.9f, 0.4f});
   const State rest = State::rest(m);
   const int saved = omp_get_max_threads();
   std::vector<State> results;
@@ -344,10 +344,10 @@ TEST(Propagation, LargeBucketsSplitAmongThreadsEqualTheReference) {
     results.push_back(run.wave(grab, targets));
     EXPECT_TRUE(run.last.converged);
     EXPECT_GT(run.last.largest_bucket, 1024) << "the bucket must be large enough to be split among threads";
-    if (threads == 2) expect_wave_equal(m, rest.pos, results.back(), grab, targets, "2 threads", run.last.reached);
+    if (threads == 2) expect_wave_equal(m, rest.disp, results.back(), grab, targets, "2 threads", run.last.reached);
   }
   omp_set_num_threads(saved);
-  const std::size_t n = results[0].pos.size();
-  EXPECT_EQ(std::memcmp(results[0].pos.data(), results[1].pos.data(), n * sizeof(Vec3)), 0);
+  const std::size_t n = results[0].disp.size();
+  EXPECT_EQ(std::memcmp(results[0].disp.data(), results[1].disp.data(), n * sizeof(Vec3)), 0);
   EXPECT_EQ(std::memcmp(results[0].time.data(), results[1].time.data(), n * sizeof(float)), 0);
 }

@@ -119,7 +119,8 @@ Index DijkstraPropagator::run(std::vector<Vec3>& pos, const std::vector<Index>& 
       use[k] = final_[n] && key_less(time_[n], nb[k].n, top.c, top.e);
     }
     const Vec3 p0 = pos[e];  // a non-final element still sits at its wave-start position
-    const Vec3 q = clamp_against(p0, nb, cnt, use, pos, time_, wall_);
+    const Int3 ce = m_.coords(e);
+    const Vec3 q = clamp_against(p0, nb, cnt, use, pos, time_, solver::element_wall(wall_, ce.x, ce.y, ce.z));
     if (q == p0) continue;  // not moved: it may be pushed again by a later neighbour
     pos[e] = q;
     time_[e] = top.c;
@@ -175,7 +176,8 @@ RuleResult evaluate_rule(const Model& m, Index e, const std::vector<Vec3>& p0, c
   bool use[6];
   for (int j = 0; j < nc; ++j) {
     for (int k = 0; k < cnt; ++k) use[k] = key_less(time[static_cast<std::size_t>(nb[k].n)], nb[k].n, cand[j], e);
-    const Vec3 q = clamp_against(q0, nb, cnt, use, pos, time, wall);
+    const Int3 ce = m.coords(e);
+    const Vec3 q = clamp_against(q0, nb, cnt, use, pos, time, solver::element_wall(wall, ce.x, ce.y, ce.z));
     if (!(q == q0)) return {cand[j], q};
   }
   return {kInf, q0};
@@ -185,7 +187,7 @@ float link_violation(const Model& m, Index i, int a, const std::vector<Vec3>& po
   const Index stride = a == 0 ? 1 : a == 1 ? m.dims.x : static_cast<Index>(m.dims.x) * m.dims.y;
   const LinkLimits& L = m.link(a, i);
   const Vec3 d = pos[static_cast<std::size_t>(i + stride)] - pos[static_cast<std::size_t>(i)];
-  float v = std::max({0.0f, L.min_d - d[a], d[a] - L.max_d});
+  float v = std::max({0.0f, L.min_stretch - d[a], d[a] - L.max_stretch});
   for (int b = 0; b < 3; ++b)
     if (b != a) v = std::max(v, std::fabs(d[b]) - L.shear);
   return v;

@@ -2,6 +2,7 @@
 // Sequential Dijkstra-order reference of the timestamped HP-ChainMail propagation (SPEC §4).
 // Single-threaded, deliberately plain: used by the test suite to check the parallel solver
 // (src/cpu/chainmail_propagate.cpp) and by the benchmark. Never used by the pipeline.
+// Positions are displacements from rest (u = X - X0), as in every backend.
 //
 // The rule (docs/solver.md, "Propagation rule"), per non-FIXED element e with start
 // position p0:
@@ -26,7 +27,7 @@ namespace hpcm::reference {
 inline constexpr float kInf = std::numeric_limits<float>::infinity();
 
 struct ReferenceWave {
-  std::vector<Vec3> pos;    ///< positions after the wave
+  std::vector<Vec3> pos;    ///< displacements from rest after the wave
   std::vector<float> time;  ///< arrival times: 0 for FIXED, +inf where the wave did not move e
   Index reached = 0;        ///< non-FIXED elements with a finite time
 };
@@ -39,8 +40,8 @@ struct Interval {
 };
 inline Interval link_interval(const LinkLimits& L, int a, bool e_plus, Vec3 pn, int b) {
   if (b != a) return {pn[b] - L.shear, pn[b] + L.shear};
-  if (e_plus) return {pn[a] + L.min_d, pn[a] + L.max_d};
-  return {pn[a] - L.max_d, pn[a] - L.min_d};
+  if (e_plus) return {pn[a] + L.min_stretch, pn[a] + L.max_stretch};
+  return {pn[a] - L.max_stretch, pn[a] - L.min_stretch};
 }
 
 /// One of e's (up to 6) neighbours: index, link axis, whether e is on the + side, limits.
@@ -54,7 +55,8 @@ struct Neighbour {
 int neighbours(const Model& m, Index e, Neighbour out[6]);
 
 /// clamp(p0, S) of the rule for the neighbours nb[k] with use[k] set, at positions pos and
-/// keys (time, index), inside the boundary box `wall`. Returns p0 when no neighbour is used.
+/// keys (time, index), inside the element's wall `wall` (solver::element_wall). Returns p0 when
+/// no neighbour is used.
 Vec3 clamp_against(const Vec3& p0, const Neighbour* nb, int count, const bool* use, const std::vector<Vec3>& pos,
                    const std::vector<float>& time, const solver::Wall& wall);
 
