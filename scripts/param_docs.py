@@ -7,7 +7,7 @@
 
 the page holds exactly that output. Regenerate after changing the table:
 
-    /usr/bin/python3 scripts/param_docs.py --hpcm build/apps/hpcm/hpcm --write docs/parameters.md
+    cmake --build build --target hpcm_param_docs
 
 --check (the CTest test) exits 1 naming the first section that differs.
 """
@@ -49,8 +49,7 @@ def main():
         for section, block in generated.items():
             if in_page[section] != block:
                 print(f"FAIL: {a.page}: the generated parameter table [{section}] differs from `hpcm params --markdown`;"
-                      " regenerate it with: /usr/bin/python3 scripts/param_docs.py --hpcm <build>/apps/hpcm/hpcm"
-                      f" --write {a.page}")
+                      " regenerate it with: cmake --build <build> --target hpcm_param_docs")
                 for line_page, line_gen in zip(in_page[section].splitlines(), block.splitlines()):
                     if line_page != line_gen:
                         print(f"  page:      {line_page}\n  generated: {line_gen}")

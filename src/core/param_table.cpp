@@ -83,13 +83,14 @@ std::vector<ParamSpec> make_table() {
   }
   t.push_back(integer("solver.relax_sweeps", [](Params& p) -> int& { return p.solver.relax_sweeps; }, {0, 256},
                       "relaxation sweeps K per frame (early exit below the threshold); with the velocity layer on, "
-                      "fewer sweeps lower the stable inertia gain (stability rule)"));
+                      "fewer sweeps lower the stable inertia gain (stability rule; its error names the fewest sweeps that would do)"));
   t.push_back(real("solver.relax_threshold", [](Params& p) -> float& { return p.solver.relax_threshold; }, {0, 0.999}, lu,
-                   "smaller relaxation corrections are skipped: decides how far a pull reaches; with the velocity layer "
-                   "on, dynamics.dead_zone must be at least " + num(kDeadZonePerThreshold) + " times it",
+                   "smaller relaxation corrections are skipped: decides how far a pull reaches (docs/tuning.md, Reach "
+                   "and settling); with the velocity layer on, dynamics.dead_zone must be at least " + num(kDeadZonePerThreshold) + " times it",
                    {0, 0.999, true}));
   t.push_back(real("solver.relax_omega", [](Params& p) -> float& { return p.solver.relax_omega; }, {1, 1.95}, "",
-                   "over-relaxation of each relaxation step (1 = plain Gauss-Seidel); enters the stability rule"));
+                   "over-relaxation of each relaxation step (1 = plain Gauss-Seidel, the paper's rule); enters the "
+                   "stability rule"));
   {
     ParamSpec s{"solver.anchors", ParamType::Choice};
     s.choices = {"none", "bone", "border"};
@@ -103,8 +104,9 @@ std::vector<ParamSpec> make_table() {
   {
     ParamSpec s{"solver.sleep", ParamType::Flag};
     s.flag = [](Params& p) -> bool& { return p.solver.sleep; };
-    s.help = "bricks where nothing moves cost nothing until the wave, a moving neighbour or the tool wakes them; "
-             "false keeps every brick awake every frame (the exact reference)";
+    s.help = "bricks (brick_size^3 elements) where nothing moves are skipped until the wave, a moving neighbour or "
+             "the tool wakes them; false keeps every brick awake every frame (the exact reference, for measuring "
+             "what sleeping changes)";
     t.push_back(std::move(s));
   }
 
@@ -131,7 +133,8 @@ std::vector<ParamSpec> make_table() {
   t.push_back(real("dynamics.s_max", [](Params& p) -> float& { return p.dynamics.s_max; }, unit_interval, "",
                    "upper clamp of the response scale; s_min <= s_max"));
   t.push_back(real("dynamics.dead_zone", [](Params& p) -> float& { return p.dynamics.dead_zone; }, {0, 0.999}, lu,
-                   "ChainMail corrections |dX| below this count as 0; under simple and viscoelastic at least " +
+                   "ChainMail corrections |dX| below this count as 0 (stops drift, and the relay of the relaxation's "
+                   "threshold: docs/velocity_layer.md); under simple and viscoelastic at least " +
                        num(kMinSettlingDeadZone) + " and at least " + num(kDeadZonePerThreshold) +
                        " * solver.relax_threshold (stability rule)",
                    {0, 0.999, true}));
