@@ -33,8 +33,10 @@ def main():
     mode.add_argument("--write", action="store_true", help="replace the generated blocks in the page")
     a = ap.parse_args()
 
-    generated = blocks(subprocess.run([a.hpcm, "params", "--markdown"], check=True, capture_output=True,
-                                      text=True).stdout)
+    run = subprocess.run([a.hpcm, "params", "--markdown"], capture_output=True, text=True)
+    if run.returncode != 0:
+        sys.exit(f"param_docs: `{a.hpcm} params --markdown` failed (exit {run.returncode}): {run.stderr.strip()}")
+    generated = blocks(run.stdout)
     if not generated:
         sys.exit("param_docs: `hpcm params --markdown` printed no table")
     with open(a.page, encoding="utf-8") as f:
