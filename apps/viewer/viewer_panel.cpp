@@ -259,12 +259,13 @@ ImGuiSliderFlags slider_flags(const PanelParam& w) {
   return ImGuiSliderFlags_AlwaysClamp | (w.logarithmic ? ImGuiSliderFlags_Logarithmic : 0);
 }
 
-/// ImGui's logarithmic sliders treat values below 10^-(decimals of the format) as 0: a span from
-/// 0 needs fixed decimals fine enough for the smallest useful value (sleep_speed 1e-7).
-const char* real_format(const PanelParam& w) { return w.logarithmic && w.lo <= 0 ? "%.8f" : "%.4g"; }
+/// Shortest text of a float (7 significant digits, trailing zeros dropped). ImGui's logarithmic
+/// sliders treat values below 10^-precision as 0, so 7 also lets a span from 0 reach 1e-7
+/// (dynamics.sleep_speed's default).
+constexpr const char* kRealFormat = "%.7g";
 
 bool real_slider(const char* label, float* v, const PanelParam& w) {
-  return ImGui::SliderFloat(label, v, float(w.lo), float(w.hi), real_format(w), slider_flags(w));
+  return ImGui::SliderFloat(label, v, float(w.lo), float(w.hi), kRealFormat, slider_flags(w));
 }
 
 /// One widget for one parameter of the table: its label gives the valid range, its tooltip
@@ -324,6 +325,7 @@ bool section_widgets(const char* section, Params& p) {
 
 bool Viewer::panel_solver_and_dynamics() {
   bool changed = false;
+  ImGui::PushItemWidth(-190);  // room for the labels with their ranges
   if (ImGui::CollapsingHeader("Grab tool and solver", ImGuiTreeNodeFlags_DefaultOpen)) changed |= section_widgets("solver", edit_);
   if (ImGui::CollapsingHeader("Dynamics (velocity layer)", ImGuiTreeNodeFlags_DefaultOpen)) {
     ImGui::TextDisabled("mode: 1/2/3 = none/simple/viscoelastic");
@@ -331,6 +333,7 @@ bool Viewer::panel_solver_and_dynamics() {
     const PerTissue s = edit_.dynamics.response_scale();
     ImGui::TextDisabled("response scale s: %.3f %.3f %.3f %.3f", double(s[0]), double(s[1]), double(s[2]), double(s[3]));
   }
+  ImGui::PopItemWidth();
   return changed;
 }
 
@@ -353,15 +356,15 @@ bool Viewer::panel_tissue_and_material() {
     changed = true;
   }
   std::vector<PanelParam> columns;
-  std::string legend = "control points:";
+  std::string points_help, column_ranges;
   for (const PanelParam& w : panel_params("material"))
     if (w.spec->type == ParamType::PointField) {
-      legend += (columns.empty() ? " " : ", ") + w.label;
+      column_ranges += (columns.empty() ? "" : ", ") + w.label;
       columns.push_back(w);
     } else {
-      legend = w.spec->help + "; " + legend;
+      points_help = w.spec->help;
     }
-  ImGui::TextWrapped("%s", legend.c_str());
+  ImGui::TextWrapped("%s. Ranges: %s", points_help.c_str(), column_ranges.c_str());
   auto& pts = edit_.material.points;
   int remove = -1;
   for (std::size_t i = 0; i < pts.size(); ++i) {
@@ -369,7 +372,7 @@ bool Viewer::panel_tissue_and_material() {
     ImGui::PushItemWidth(70);
     for (std::size_t c = 0; c < columns.size(); ++c) {
       const PanelParam& w = columns[c];
-      const std::string id = "##" + w.spec->name(), format = w.spec->name() + " %.4g";
+      const std::string id = "##" + w.spec->name(), format = w.spec->name() + " " + kRealFormat;
       if (c) ImGui::SameLine();
       const float speed = w.logarithmic ? 0.001f : 1.0f;
       changed |= ImGui::DragFloat(id.c_str(), &(pts[i].*(w.spec->point_field)), speed, float(w.lo), float(w.hi),

@@ -67,13 +67,14 @@ const std::vector<ParamSpec>& param_table();
 /// The entry of `key`, or nullptr.
 const ParamSpec* find_param(const std::string& key);
 
-/// "[0, 1]", "(0, 64]", "4 | 8 | 16", "\"none\" | \"bone\"", "true | false", "finite" (docs,
-/// comments and labels; numbers in their shortest form, 1e6 not 1e+06).
+/// "[0, 1]", "(0, 64]", "[1, 1e7]", "4 | 8 | 16", "\"none\" | \"bone\"", "true | false", "finite"
+/// (docs, comments and labels).
 std::string range_text(const ParamSpec& s);
 /// The default (from a default-constructed Params) as text: "0.98", "8", "\"bone\"", "true",
 /// "air 0, skin_fat 0.15, ..." (docs and labels).
 std::string default_text(const ParamSpec& s);
-/// A number as range_text writes it.
+/// A number as range_text writes it: at most 6 significant digits, 1e-6 and 1e6 rather than
+/// 1e-06 and 1e+06, integers below 1e5 in full.
 std::string format_number(double v);
 
 /// docs/parameters.md's tables: one Markdown table per section, each between comment fences

@@ -205,7 +205,7 @@ const ParamSpec* find_param(const std::string& key) {
 }
 
 std::string format_number(double v) {
-  if (v == std::floor(v) && std::abs(v) <= 1e7) return std::to_string(static_cast<long long>(v));
+  if (v == std::floor(v) && std::abs(v) < 1e5) return std::to_string(static_cast<long long>(v));
   std::ostringstream o;
   o << static_cast<float>(v);  // at most 6 significant digits, as the values are written
   std::string s = o.str();
