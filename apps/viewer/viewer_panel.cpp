@@ -9,6 +9,7 @@
 #include <fstream>
 #include <functional>
 
+#include "param_panel.hpp"
 #include "viewer.hpp"
 
 #ifdef HPCM_VIEWER_WITH_IO
@@ -248,68 +249,103 @@ void Viewer::panel_views() {
   ImGui::TextDisabled("left-drag: grab | right/middle-drag: pan | wheel: zoom");
 }
 
-bool Viewer::panel_solver_and_dynamics() {
+namespace {
+
+void tooltip(const PanelParam& w) {
+  if (ImGui::IsItemHovered()) ImGui::SetTooltip("%s", w.tooltip.c_str());
+}
+
+ImGuiSliderFlags slider_flags(const PanelParam& w) {
+  return ImGuiSliderFlags_AlwaysClamp | (w.logarithmic ? ImGuiSliderFlags_Logarithmic : 0);
+}
+
+/// Shortest text of a float (7 significant digits, trailing zeros dropped). ImGui's logarithmic
+/// sliders treat values below 10^-precision as 0, so 7 also lets a span from 0 reach 1e-7
+/// (dynamics.sleep_speed's default).
+constexpr const char* kRealFormat = "%.7g";
+
+bool real_slider(const char* label, float* v, const PanelParam& w) {
+  return ImGui::SliderFloat(label, v, float(w.lo), float(w.hi), kRealFormat, slider_flags(w));
+}
+
+/// One widget for one parameter of the table: its label gives the valid range, its tooltip
+/// the unit and help; sliders run over the table's span.
+bool param_widget(const PanelParam& w, Params& p) {
+  const ParamSpec& s = *w.spec;
   bool changed = false;
-  if (ImGui::CollapsingHeader("Grab tool and solver", ImGuiTreeNodeFlags_DefaultOpen)) {
-    SolverParams& s = edit_.solver;
-    changed |= ImGui::SliderFloat("grab radius (0,64]", &s.grab_radius, 0.5f, 16.0f, "%.2f", ImGuiSliderFlags_AlwaysClamp);
-    int bs = s.brick_size == 4 ? 0 : s.brick_size == 16 ? 2 : 1;
-    if (ImGui::Combo("brick size", &bs, "4\0" "8\0" "16\0")) {
-      s.brick_size = bs == 0 ? 4 : bs == 2 ? 16 : 8;
-      changed = true;
+  switch (s.type) {
+    case ParamType::Real: changed = real_slider(w.label.c_str(), &s.real(p), w); break;
+    case ParamType::Integer:
+      if (!s.allowed.empty()) {
+        int& v = s.integer(p);
+        if (ImGui::BeginCombo(w.label.c_str(), std::to_string(v).c_str())) {
+          for (int a : s.allowed)
+            if (ImGui::Selectable(std::to_string(a).c_str(), a == v)) v = a, changed = true;
+          ImGui::EndCombo();
+        }
+      } else {
+        changed = ImGui::SliderInt(w.label.c_str(), &s.integer(p), int(w.lo), int(w.hi), "%d", slider_flags(w));
+      }
+      break;
+    case ParamType::Flag: changed = ImGui::Checkbox(w.label.c_str(), &s.flag(p)); break;
+    case ParamType::Choice: {
+      const std::string now = s.choice_name(p);
+      if (ImGui::BeginCombo(w.label.c_str(), now.c_str())) {
+        for (const std::string& c : s.choices)
+          if (ImGui::Selectable(c.c_str(), c == now)) s.set_choice(p, c), changed = true;
+        ImGui::EndCombo();
+      }
+      break;
     }
-    changed |= ImGui::SliderInt("relax sweeps K [0,256]", &s.relax_sweeps, 0, 256, "%d", ImGuiSliderFlags_AlwaysClamp);
-    changed |= ImGui::InputFloat("relax threshold [0,1)", &s.relax_threshold, 1e-5f, 1e-4f, "%.6f");
-    int an = static_cast<int>(s.anchors);
-    if (ImGui::Combo("anchors", &an, "none\0bone\0border\0")) {
-      s.anchors = static_cast<AnchorMode>(an);
-      changed = true;
-    }
-    changed |= ImGui::InputInt("max propagation sweeps [1,1e7]", &s.max_propagation_sweeps, 100, 10000);
-  }
-  if (ImGui::CollapsingHeader("Dynamics (velocity layer)", ImGuiTreeNodeFlags_DefaultOpen)) {
-    DynamicsParams& d = edit_.dynamics;
-    int mode = static_cast<int>(d.mode);
-    if (ImGui::Combo("damping (1/2/3)", &mode, "A: none\0B: simple\0C: viscoelastic\0")) {
-      d.mode = static_cast<DampingMode>(mode);
-      changed = true;
-    }
-    changed |= ImGui::SliderFloat("alpha [0,0.99] (B)", &d.alpha, 0, 1, "%.3f", ImGuiSliderFlags_AlwaysClamp);
-    changed |= ImGui::SliderFloat("b0 [0.005,1] (C)", &d.b0, 0, 1, "%.3f", ImGuiSliderFlags_AlwaysClamp);
-    auto per_tissue = [&](const char* title, PerTissue& v, float lo, float hi, const char* f) {
-      bool ch = false;
-      ImGui::PushID(title);
-      ImGui::TextUnformatted(title);
+    case ParamType::PerClass: {
+      ImGui::PushID(s.key.c_str());
+      ImGui::TextUnformatted((s.name() + " per class, each " + range_text(s)).c_str());
+      tooltip(w);
       for (int t = 0; t < kTissueCount; ++t) {
         const std::string l = std::string("  ") + tissue_name(t);
-        ch |= ImGui::SliderFloat(l.c_str(), &v[t], lo, hi, f, ImGuiSliderFlags_AlwaysClamp);
+        changed |= real_slider(l.c_str(), &s.per_class(p)[static_cast<std::size_t>(t)], w);
       }
       ImGui::PopID();
-      return ch;
-    };
-    changed |= per_tissue("b1 per class [0,1] (C)", d.b1, 0, 1, "%.3f");
-    changed |= per_tissue("inverse mass per class (>= 0, one > 0)", d.inverse_mass, 0, 10, "%.3f");
-    changed |= ImGui::SliderFloat("s_min [0,s_max]", &d.s_min, 0, 1, "%.3f", ImGuiSliderFlags_AlwaysClamp);
-    changed |= ImGui::SliderFloat("s_max [s_min,1]", &d.s_max, 0, 1, "%.3f", ImGuiSliderFlags_AlwaysClamp);
-    changed |= ImGui::InputFloat("dead zone [3e-4,1), >= 2 x threshold (B, C)", &d.dead_zone, 1e-4f, 1e-3f, "%.5f");
-    changed |= ImGui::SliderFloat("v_max (0,10]", &d.v_max, 0.001f, 10, "%.3f", ImGuiSliderFlags_AlwaysClamp | ImGuiSliderFlags_Logarithmic);
-    changed |= ImGui::SliderFloat("beta [0,2]", &d.beta, 0, 2, "%.3f", ImGuiSliderFlags_AlwaysClamp);
-    changed |= per_tissue("rho per class [0,2]", d.rho, 0, 2, "%.3f");
-    changed |= ImGui::SliderFloat("margin [0,64]", &d.margin, 0, 64, "%.1f", ImGuiSliderFlags_AlwaysClamp);
-    const PerTissue s = d.response_scale();
+      return changed;
+    }
+    case ParamType::Points:
+    case ParamType::PointField: break;  // the control-point rows (panel_tissue_and_material)
+  }
+  tooltip(w);
+  return changed;
+}
+
+bool section_widgets(const char* section, Params& p) {
+  bool changed = false;
+  for (const PanelParam& w : panel_params(section)) changed |= param_widget(w, p);
+  return changed;
+}
+
+}  // namespace
+
+bool Viewer::panel_solver_and_dynamics() {
+  bool changed = false;
+  ImGui::PushItemWidth(-190);  // room for the labels with their ranges
+  if (ImGui::CollapsingHeader("Grab tool and solver", ImGuiTreeNodeFlags_DefaultOpen)) changed |= section_widgets("solver", edit_);
+  if (ImGui::CollapsingHeader("Dynamics (velocity layer)", ImGuiTreeNodeFlags_DefaultOpen)) {
+    ImGui::TextDisabled("mode: 1/2/3 = none/simple/viscoelastic");
+    changed |= section_widgets("dynamics", edit_);
+    const PerTissue s = edit_.dynamics.response_scale();
     ImGui::TextDisabled("response scale s: %.3f %.3f %.3f %.3f", double(s[0]), double(s[1]), double(s[2]), double(s[3]));
   }
+  ImGui::PopItemWidth();
   return changed;
 }
 
 bool Viewer::panel_tissue_and_material() {
   if (!ImGui::CollapsingHeader("Tissue classes and material")) return false;
   bool changed = false;
-  TissueThresholds& t = edit_.tissue;
   ImGui::TextDisabled("t1 < t2 < t3 (HU); rebuilds the materials");
-  changed |= ImGui::DragFloat("t1 air | skin&fat", &t.t1, 1.0f, -2000, 4000, "%.0f");
-  changed |= ImGui::DragFloat("t2 skin&fat | muscle", &t.t2, 1.0f, -2000, 4000, "%.0f");
-  changed |= ImGui::DragFloat("t3 muscle | bone", &t.t3, 1.0f, -2000, 4000, "%.0f");
+  for (const PanelParam& w : panel_params("tissue")) {
+    changed |= ImGui::DragFloat(w.label.c_str(), &w.spec->real(edit_), 1.0f, float(w.lo), float(w.hi), "%.0f");
+    tooltip(w);
+  }
+  TissueThresholds& t = edit_.tissue;
   if (ImGui::SmallButton("paper thresholds")) {
     t = TissueThresholds{};
     changed = true;
@@ -319,17 +355,30 @@ bool Viewer::panel_tissue_and_material() {
     t = TissueThresholds::robust_preset();
     changed = true;
   }
-  ImGui::TextDisabled("control points: HU increasing, tau in (0,1], w in (0,100]");
+  std::vector<PanelParam> columns;
+  std::string points_help, column_ranges;
+  for (const PanelParam& w : panel_params("material"))
+    if (w.spec->type == ParamType::PointField) {
+      column_ranges += (columns.empty() ? "" : ", ") + w.label;
+      columns.push_back(w);
+    } else {
+      points_help = w.spec->help;
+    }
+  ImGui::TextWrapped("%s. Ranges: %s", points_help.c_str(), column_ranges.c_str());
   auto& pts = edit_.material.points;
   int remove = -1;
   for (std::size_t i = 0; i < pts.size(); ++i) {
     ImGui::PushID(static_cast<int>(i));
     ImGui::PushItemWidth(70);
-    changed |= ImGui::DragFloat("##hu", &pts[i].hu, 1.0f, -3000, 5000, "%.0f HU");
-    ImGui::SameLine();
-    changed |= ImGui::DragFloat("##tau", &pts[i].tau, 0.001f, 1e-4f, 1.0f, "tau %.4f", ImGuiSliderFlags_AlwaysClamp);
-    ImGui::SameLine();
-    changed |= ImGui::DragFloat("##w", &pts[i].w, 0.01f, 1e-3f, 100.0f, "w %.3f", ImGuiSliderFlags_AlwaysClamp);
+    for (std::size_t c = 0; c < columns.size(); ++c) {
+      const PanelParam& w = columns[c];
+      const std::string id = "##" + w.spec->name(), format = w.spec->name() + " " + kRealFormat;
+      if (c) ImGui::SameLine();
+      const float speed = w.logarithmic ? 0.001f : 1.0f;
+      changed |= ImGui::DragFloat(id.c_str(), &(pts[i].*(w.spec->point_field)), speed, float(w.lo), float(w.hi),
+                                  format.c_str(), slider_flags(w));
+      tooltip(w);
+    }
     ImGui::PopItemWidth();
     ImGui::SameLine();
     if (pts.size() > 2 && ImGui::SmallButton("x")) remove = static_cast<int>(i);

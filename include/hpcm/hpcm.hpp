@@ -4,6 +4,7 @@
 #include "hpcm/backend_factory.hpp"
 #include "hpcm/material.hpp"
 #include "hpcm/model.hpp"
+#include "hpcm/param_table.hpp"
 #include "hpcm/params.hpp"
 #include "hpcm/phantom.hpp"
 #include "hpcm/scenario.hpp"

@@ -47,8 +47,9 @@ struct MaterialTable {
   /// Defaults: air, fat, muscle/organ, bone (SPEC §3 table).
   std::vector<MaterialPoint> points{{-1000.f, 0.5f, 1.0f}, {-100.f, 0.35f, 0.6f}, {50.f, 0.22f, 0.3f}, {700.f, 0.005f, 0.02f}};
 
-  /// Throws hpcm::Error: at least 2 points, HU finite and strictly increasing,
-  /// tau in (0, 1], w in [kMinLinkPenalty, kMaxLinkPenalty] = [1e-6, 100].
+  /// Throws hpcm::Error unless there are at least 2 points with HU strictly increasing. The
+  /// columns' own ranges (hu finite, tau in (0, 1], w in [kMinLinkPenalty, kMaxLinkPenalty])
+  /// are the parameter table's: Params::validate runs both.
   void validate() const;
   /// Interpolated values; constant beyond the first and last control point.
   float tau(float hu) const;

@@ -1,6 +1,7 @@
 #pragma once
 // Every user setting of SPEC §3–5 in one struct, with validation. Defaults are the tuned
-// values documented in docs/tuning.md.
+// values documented in docs/tuning.md; each key's range, unit and help are in the parameter
+// table (hpcm/param_table.hpp, src/core/param_table.cpp), the only place they are written.
 #include <string>
 
 #include "hpcm/material.hpp"
@@ -18,18 +19,17 @@ const char* anchor_mode_name(AnchorMode m);
 AnchorMode parse_anchor_mode(const std::string& s, const std::string& what);
 
 struct SolverParams {
-  float grab_radius = 1.5f;        ///< (0, 64] lattice units
-  int brick_size = 8;              ///< 4, 8 or 16 (CPU bricks for sparse work)
-  int relax_sweeps = 8;            ///< K, [0, 256]
-  float relax_threshold = 0.03f;   ///< [0, 1) lattice units: smaller corrections are skipped (decides the reach, SPEC §8.8)
-  float relax_omega = 1.85f;       ///< over-relaxation of each step, [1, 1.95] (1 = Gauss-Seidel)
+  float grab_radius = 1.5f;        ///< lattice units
+  int brick_size = 8;              ///< CPU bricks for sparse work
+  int relax_sweeps = 8;            ///< K
+  float relax_threshold = 0.03f;   ///< lattice units: smaller corrections are skipped (decides the reach, SPEC §8.8)
+  float relax_omega = 1.85f;       ///< over-relaxation of each step (1 = Gauss-Seidel)
   AnchorMode anchors = AnchorMode::Bone;
-  int max_propagation_sweeps = 100000;  ///< safety cap, [1, 10^7]
+  int max_propagation_sweeps = 100000;  ///< safety cap
   /// Bricks where nothing moves sleep (cost nothing) until a neighbour, the wave or the tool
   /// wakes them; velocities below dynamics.sleep_speed are set to 0. false keeps every brick
   /// awake and every velocity (the exact reference, slower).
   bool sleep = true;
-  void validate() const;
   friend bool operator==(const SolverParams&, const SolverParams&) = default;
 };
 
@@ -44,20 +44,19 @@ inline constexpr float kDeadZonePerThreshold = 2.0f;
 
 struct DynamicsParams {
   DampingMode mode = DampingMode::Viscoelastic;
-  float alpha = 0.98f;                       ///< simple damping, [0, 1]
-  float b0 = 0.035f;                         ///< viscoelastic constant term, [0, 1]
-  PerTissue b1{0.0f, 0.15f, 0.15f, 0.15f};       ///< viscoelastic displacement term, [0, 1]; air 0
-  PerTissue inverse_mass{1.0f, 1.0f, 0.15f, 0.0f};  ///< >= 0, at least one > 0
-  float s_min = 0.0f, s_max = 1.0f;          ///< response-scale clamp, 0 <= s_min <= s_max <= 1
-  float dead_zone = 0.06f;                   ///< [0, 1) lattice units; at least kDeadZonePerThreshold * relax_threshold
-  float v_max = 0.5f;                        ///< (0, 10] lattice units per frame
-  /// [0, 0.01] lattice units per frame: a velocity below it is set to 0 (the element comes to
+  float alpha = 0.98f;                       ///< simple damping
+  float b0 = 0.035f;                         ///< viscoelastic constant term
+  PerTissue b1{0.0f, 0.15f, 0.15f, 0.15f};       ///< viscoelastic displacement term; air 0
+  PerTissue inverse_mass{1.0f, 1.0f, 0.15f, 0.0f};  ///< at least one > 0
+  float s_min = 0.0f, s_max = 1.0f;          ///< response-scale clamp, s_min <= s_max
+  float dead_zone = 0.06f;                   ///< lattice units; at least kDeadZonePerThreshold * relax_threshold
+  float v_max = 0.5f;                        ///< lattice units per frame
+  /// Lattice units per frame: a velocity below it is set to 0 (the element comes to
   /// rest and its brick can sleep); ignored when solver.sleep is false.
   float sleep_speed = 1e-7f;
-  float beta = 1.0f;                         ///< global inertia gain, [0, 2]
-  PerTissue rho{1.0f, 1.0f, 1.0f, 1.0f};     ///< per-class position gain, [0, 2]
-  float margin = 2.0f;                       ///< boundary margin, [0, 64] lattice units
-  void validate() const;
+  float beta = 1.0f;                         ///< global inertia gain
+  PerTissue rho{1.0f, 1.0f, 1.0f, 1.0f};     ///< per-class position gain
+  float margin = 2.0f;                       ///< boundary margin, lattice units
   /// s_class = clamp(inverse_mass / max(inverse_mass), s_min, s_max) (SPEC §5.3).
   PerTissue response_scale() const;
   /// Largest inertia gain beta * rho_class * s_class with which the motion still settles under
@@ -73,8 +72,9 @@ struct Params {
   MaterialTable material;
   SolverParams solver;
   DynamicsParams dynamics;
-  /// Validates every part; the message names the key (e.g. "dynamics.alpha") and range.
-  /// Also rejects velocity-layer settings that never settle (the stability rule).
+  /// Validates every part: each key's range (the parameter table), then the rules that relate
+  /// keys. The message names the key (e.g. "dynamics.alpha") and range. Also rejects
+  /// velocity-layer settings that never settle (the stability rule).
   void validate() const;
   friend bool operator==(const Params&, const Params&) = default;
 };

@@ -5,6 +5,7 @@
 
 #include "toml_util.hpp"
 #include "hpcm/config.hpp"
+#include "hpcm/param_table.hpp"
 
 namespace hpcm::config {
 
@@ -38,102 +39,85 @@ void read_per_tissue(Section& s, std::string_view key, PerTissue& out) {
   sub.finish();
 }
 
-void read_tissue(Section& root, Params& p) {
-  const toml::table* t = root.table("tissue");
-  if (!t) return;
-  Section s(root.ctx(), *t, "tissue");
+// tissue.preset is a shorthand, not a field: it sets t1..t3, and t1, t2, t3 given beside it
+// override it (so it is read first).
+void read_tissue_preset(Section& s, Params& p) {
   std::string preset;
-  if (s.read("preset", preset)) {
-    if (preset == "paper") {
-      p.tissue = TissueThresholds{};
-    } else if (preset == "robust") {
-      p.tissue = TissueThresholds::robust_preset();
-    } else {
-      fail(s.ctx(), s.get("preset"), "tissue.preset = \"" + preset + "\" is not a preset (valid: \"paper\", \"robust\")");
-    }
+  if (!s.read("preset", preset)) return;
+  if (preset == "paper") {
+    p.tissue = TissueThresholds{};
+  } else if (preset == "robust") {
+    p.tissue = TissueThresholds::robust_preset();
+  } else {
+    fail(s.ctx(), s.get("preset"), "tissue.preset = \"" + preset + "\" is not a preset (valid: \"paper\", \"robust\")");
   }
-  s.read("t1", p.tissue.t1);
-  s.read("t2", p.tissue.t2);
-  s.read("t3", p.tissue.t3);
-  s.finish();
 }
 
-void read_material(Section& root, Params& p) {
-  const toml::table* t = root.table("material");
+/// material.points: an array of tables, each with every column of the parameter table.
+void read_points(Section& s, const std::string& key, std::vector<MaterialPoint>& out) {
+  const toml::array* a = s.array(key);
+  if (!a) return;
+  std::vector<const ParamSpec*> columns;
+  for (const ParamSpec& c : param_table())
+    if (c.type == ParamType::PointField) columns.push_back(&c);
+  std::vector<MaterialPoint> pts;
+  for (std::size_t i = 0; i < a->size(); ++i) {
+    const toml::node& e = *a->get(i);
+    const std::string path = s.path_of(key) + "[" + std::to_string(i) + "]";
+    const toml::table* pt = e.as_table();
+    if (!pt)
+      fail(s.ctx(), &e, path + " must be a table { hu = ..., tau = ..., w = ... }, got " + detail::type_phrase(e) + " " +
+                            detail::show(e));
+    Section ps(s.ctx(), *pt, path);
+    MaterialPoint mp{};
+    for (const ParamSpec* c : columns)
+      if (!ps.read(c->name(), mp.*(c->point_field)))
+        fail(s.ctx(), &e, path + " is missing '" + c->name() + "' (each point needs hu, tau and w)");
+    ps.finish();
+    pts.push_back(mp);
+  }
+  out = std::move(pts);
+}
+
+/// One section ([tissue], [material], [solver], [dynamics]): every key of the parameter table
+/// in it, in the table's order; any other key is an error (Section::finish).
+void read_section(Section& root, const std::string& section, Params& p) {
+  const toml::table* t = root.table(section);
   if (!t) return;
-  Section s(root.ctx(), *t, "material");
-  if (const toml::array* a = s.array("points")) {
-    std::vector<MaterialPoint> pts;
-    for (std::size_t i = 0; i < a->size(); ++i) {
-      const toml::node& e = *a->get(i);
-      const std::string path = "material.points[" + std::to_string(i) + "]";
-      const toml::table* pt = e.as_table();
-      if (!pt)
-        fail(s.ctx(), &e, path + " must be a table { hu = ..., tau = ..., w = ... }, got " + detail::type_phrase(e) + " " +
-                              detail::show(e));
-      Section ps(s.ctx(), *pt, path);
-      MaterialPoint mp{};
-      for (const char* key : {"hu", "tau", "w"}) {
-        float* dst = key[0] == 'h' ? &mp.hu : key[0] == 't' ? &mp.tau : &mp.w;
-        if (!ps.read(key, *dst)) fail(s.ctx(), &e, path + " is missing '" + key + "' (each point needs hu, tau and w)");
+  Section s(root.ctx(), *t, section);
+  if (section == "tissue") read_tissue_preset(s, p);
+  for (const ParamSpec& spec : param_table()) {
+    if (spec.section() != section) continue;
+    const std::string name = spec.name();
+    switch (spec.type) {
+      case ParamType::Real: s.read(name, spec.real(p)); break;
+      case ParamType::Integer: s.read(name, spec.integer(p)); break;
+      case ParamType::Flag: s.read(name, spec.flag(p)); break;
+      case ParamType::Choice: {
+        std::string v;
+        if (s.read(name, v)) {
+          try {
+            spec.set_choice(p, v);
+          } catch (const Error& e) {
+            fail(s.ctx(), s.get(name), e.what());
+          }
+        }
+        break;
       }
-      ps.finish();
-      pts.push_back(mp);
+      case ParamType::PerClass: read_per_tissue(s, name, spec.per_class(p)); break;
+      case ParamType::Points: read_points(s, name, spec.points(p)); break;
+      case ParamType::PointField: break;  // read with their points
     }
-    p.material.points = std::move(pts);
   }
   s.finish();
 }
 
-void read_solver(Section& root, Params& p) {
-  const toml::table* t = root.table("solver");
-  if (!t) return;
-  Section s(root.ctx(), *t, "solver");
-  auto& q = p.solver;
-  s.read("grab_radius", q.grab_radius);
-  s.read("brick_size", q.brick_size);
-  s.read("relax_sweeps", q.relax_sweeps);
-  s.read("relax_threshold", q.relax_threshold);
-  s.read("relax_omega", q.relax_omega);
-  std::string anchors;
-  if (s.read("anchors", anchors)) {
-    try {
-      q.anchors = parse_anchor_mode(anchors, "solver.anchors");
-    } catch (const Error& e) {
-      fail(s.ctx(), s.get("anchors"), e.what());
-    }
-  }
-  s.read("max_propagation_sweeps", q.max_propagation_sweeps);
-  s.read("sleep", q.sleep);
-  s.finish();
-}
-
-void read_dynamics(Section& root, Params& p) {
-  const toml::table* t = root.table("dynamics");
-  if (!t) return;
-  Section s(root.ctx(), *t, "dynamics");
-  auto& d = p.dynamics;
-  std::string mode;
-  if (s.read("mode", mode)) {
-    try {
-      d.mode = parse_damping_mode(mode, "dynamics.mode");
-    } catch (const Error& e) {
-      fail(s.ctx(), s.get("mode"), e.what());
-    }
-  }
-  s.read("alpha", d.alpha);
-  s.read("b0", d.b0);
-  read_per_tissue(s, "b1", d.b1);
-  read_per_tissue(s, "inverse_mass", d.inverse_mass);
-  s.read("s_min", d.s_min);
-  s.read("s_max", d.s_max);
-  s.read("dead_zone", d.dead_zone);
-  s.read("v_max", d.v_max);
-  s.read("beta", d.beta);
-  read_per_tissue(s, "rho", d.rho);
-  s.read("margin", d.margin);
-  s.read("sleep_speed", d.sleep_speed);
-  s.finish();
+/// The sections in file order, as the parameter table lists them.
+std::vector<std::string> sections() {
+  std::vector<std::string> out;
+  for (const ParamSpec& spec : param_table())
+    if (out.empty() || out.back() != spec.section()) out.push_back(spec.section());
+  return out;
 }
 
 // ------------------------------------------------------------------------------------------
@@ -176,67 +160,86 @@ std::string per_tissue(const PerTissue& v) {
 
 std::string quoted(const char* s) { return std::string("\"") + s + "\""; }
 
+/// The comment of a key: its range (with the unit) and help, from the parameter table.
+std::string comment_of(const ParamSpec& spec) {
+  std::string c = (spec.type == ParamType::PerClass ? "each in " : "") + range_text(spec);
+  if (!spec.unit.empty()) c += " " + spec.unit;
+  return c + ": " + spec.help;
+}
+
+/// "key = value" in TOML.
+std::string assignment(const ParamSpec& spec, const Params& p) {
+  Params& q = const_cast<Params&>(p);  // the accessors give references; nothing is written here
+  std::string v;
+  switch (spec.type) {
+    case ParamType::Real: v = fmt_float(spec.real(q)); break;
+    case ParamType::Integer: v = std::to_string(spec.integer(q)); break;
+    case ParamType::Flag: v = spec.flag(q) ? "true" : "false"; break;
+    case ParamType::Choice: v = quoted(spec.choice_name(p).c_str()); break;
+    case ParamType::PerClass: v = per_tissue(spec.per_class(q)); break;
+    case ParamType::Points:
+    case ParamType::PointField: break;  // written by write_points
+  }
+  return spec.name() + " = " + v;
+}
+
+/// points = [ { hu = ..., tau = ..., w = ... }, ... ]; the first row's comment gives each
+/// column's range and unit.
+void write_points(Writer& w, const Params& p) {
+  std::vector<const ParamSpec*> columns;
+  std::string legend;
+  for (const ParamSpec& c : param_table())
+    if (c.type == ParamType::PointField) {
+      legend += (columns.empty() ? "" : "; ") + c.name() + " " + range_text(c) + (c.unit.empty() ? "" : " " + c.unit);
+      columns.push_back(&c);
+    }
+  w.raw("points = [");
+  for (std::size_t i = 0; i < p.material.points.size(); ++i) {
+    std::string row = "  {";
+    for (std::size_t k = 0; k < columns.size(); ++k)
+      row += (k ? ", " : " ") + columns[k]->name() + " = " + fmt_float(p.material.points[i].*(columns[k]->point_field));
+    w.kv(row + " },", i == 0 ? legend : "");
+  }
+  w.raw("]");
+}
+
+/// The prose above each section's keys (what the keys have in common; each key's range and
+/// help are the parameter table's).
+void section_intro(Writer& w, const std::string& section) {
+  if (section == "tissue") {
+    w.raw("# Four classes from HU, half-open intervals (SPEC 3): air HU < t1 <= skin_fat < t2");
+    w.raw("# <= muscle_organ < t3 <= bone. Thresholds must be finite and strictly increasing.");
+    w.raw("# preset = \"paper\" (-1000, 25, 375, the paper's) or \"robust\" (-500, 0, 200: noisy outside air");
+    w.raw("# stays air, cancellous bone counts as bone). t1, t2, t3 given beside a preset override it.");
+  } else if (section == "material") {
+    w.raw("# HP-ChainMail material (SPEC 3): tolerance tau and propagation time penalty w at control");
+    w.raw("# points; piecewise linear in HU between them (tau in log space), constant beyond the ends.");
+    w.raw("# A link uses the values at its two elements' mean HU: axial spacing in [1 - 0.8 tau, 1 + tau],");
+    w.raw("# shear within +-tau. At least 2 points, hu strictly increasing. Giving points replaces the");
+    w.raw("# whole list.");
+  } else if (section == "dynamics") {
+    w.raw("# Independent velocity layer (SPEC 5). Per-class values are tables with the keys air,");
+    w.raw("# skin_fat, muscle_organ, bone (a missing class keeps its value) or one number for all.");
+  }
+}
+
 std::string write_params(const Params& p, const std::string& header) {
   Writer w;
   w.raw(header);
   w.raw("# Every key is optional: a missing key keeps its default. Unknown keys and wrong types are");
   w.raw("# errors. Lengths are in lattice units (one unit = one element spacing), speeds in lattice");
   w.raw("# units per frame. Check a file with: hpcm params --check FILE");
-  w.raw("");
-
-  w.raw("[tissue]");
-  w.raw("# Four classes from HU, half-open intervals (SPEC 3): air HU < t1 <= skin_fat < t2");
-  w.raw("# <= muscle_organ < t3 <= bone. Thresholds must be finite and strictly increasing.");
-  w.raw("# preset = \"paper\" (-1000, 25, 375, the paper's) or \"robust\" (-500, 0, 200: noisy outside air");
-  w.raw("# stays air, cancellous bone counts as bone). t1, t2, t3 given beside a preset override it.");
-  w.kv("t1 = " + fmt_float(p.tissue.t1), "HU, air | skin_fat");
-  w.kv("t2 = " + fmt_float(p.tissue.t2), "HU, skin_fat | muscle_organ");
-  w.kv("t3 = " + fmt_float(p.tissue.t3), "HU, muscle_organ | bone");
-  w.raw("");
-
-  w.raw("[material]");
-  w.raw("# HP-ChainMail material (SPEC 3): tolerance tau and propagation time penalty w at control");
-  w.raw("# points; piecewise linear in HU between them (tau in log space), constant beyond the ends.");
-  w.raw("# A link uses the values at its two elements' mean HU: axial spacing in [1 - 0.8 tau, 1 + tau],");
-  w.raw("# shear within +-tau. At least 2 points, hu finite and strictly increasing, tau in (0, 1],");
-  w.raw("# w in [1e-06, 100]. Giving points replaces the whole list.");
-  w.raw("points = [");
-  for (std::size_t i = 0; i < p.material.points.size(); ++i) {
-    const auto& mp = p.material.points[i];
-    w.kv("  { hu = " + fmt_float(mp.hu) + ", tau = " + fmt_float(mp.tau) + ", w = " + fmt_float(mp.w) + " },",
-         i == 0 ? "hu, tau (lattice units), w" : "");
+  const std::vector<std::string> all = sections();
+  for (const std::string& section : all) {
+    w.raw("");
+    w.raw("[" + section + "]");
+    section_intro(w, section);
+    for (const ParamSpec& spec : param_table()) {
+      if (spec.section() != section || spec.type == ParamType::PointField) continue;
+      if (spec.type == ParamType::Points) write_points(w, p);
+      else w.kv(assignment(spec, p), comment_of(spec));
+    }
   }
-  w.raw("]");
-  w.raw("");
-
-  w.raw("[solver]");
-  w.kv("grab_radius = " + fmt_float(p.solver.grab_radius), "(0, 64] lattice units: elements this close to the grab centre follow the tool");
-  w.kv("brick_size = " + std::to_string(p.solver.brick_size), "4 | 8 | 16: edge of the bricks of sparse work");
-  w.kv("relax_sweeps = " + std::to_string(p.solver.relax_sweeps), "[0, 256] relaxation sweeps K per frame (early exit)");
-  w.kv("relax_threshold = " + fmt_float(p.solver.relax_threshold), "[0, 0.999] lattice units: smaller relaxation corrections are skipped (decides how far a pull reaches)");
-  w.kv("relax_omega = " + fmt_float(p.solver.relax_omega), "[1, 1.95] over-relaxation of each relaxation step (1 = plain Gauss-Seidel)");
-  w.kv("anchors = " + quoted(anchor_mode_name(p.solver.anchors)), "\"none\" | \"bone\" | \"border\": elements held FIXED every frame");
-  w.kv("max_propagation_sweeps = " + std::to_string(p.solver.max_propagation_sweeps), "[1, 10000000] safety cap on propagation sweeps per frame");
-  w.kv(std::string("sleep = ") + (p.solver.sleep ? "true" : "false"),
-       "true | false: bricks where nothing moves cost nothing; false keeps every brick awake (exact reference)");
-  w.raw("");
-
-  w.raw("[dynamics]");
-  w.raw("# Independent velocity layer (SPEC 5). Per-class values are tables with the keys air,");
-  w.raw("# skin_fat, muscle_organ, bone (a missing class keeps its value) or one number for all.");
-  w.kv("mode = " + quoted(damping_mode_name(p.dynamics.mode)), "\"none\" (A) | \"simple\" (B) | \"viscoelastic\" (C); also \"A\", \"B\", \"C\"");
-  w.kv("alpha = " + fmt_float(p.dynamics.alpha), "[0, 1], at most 0.99 under simple: V <- alpha V + s dX");
-  w.kv("b0 = " + fmt_float(p.dynamics.b0), "[0, 1], at least 0.005 under viscoelastic: V <- (V + s dX) / (1 + b0 + b1 |X - X0|)");
-  w.kv("b1 = " + per_tissue(p.dynamics.b1), "each [0, 1]");
-  w.kv("inverse_mass = " + per_tissue(p.dynamics.inverse_mass), "each in [0, 1e6], at least one > 0; 0 = no dynamics (bone)");
-  w.kv("s_min = " + fmt_float(p.dynamics.s_min), "response scale s = clamp(m^-1 / max m^-1, s_min, s_max),");
-  w.kv("s_max = " + fmt_float(p.dynamics.s_max), "0 <= s_min <= s_max <= 1");
-  w.kv("dead_zone = " + fmt_float(p.dynamics.dead_zone), "[0, 0.999] lattice units, under simple/viscoelastic at least 3e-4 and at least 2 * solver.relax_threshold: smaller ChainMail corrections dX count as 0");
-  w.kv("v_max = " + fmt_float(p.dynamics.v_max), "(0, 10] lattice units / frame: velocity magnitude clamp");
-  w.kv("beta = " + fmt_float(p.dynamics.beta), "[0, 2] global inertia gain: X <- X+ + beta rho V");
-  w.kv("rho = " + per_tissue(p.dynamics.rho), "each [0, 2] per-class position gain");
-  w.kv("margin = " + fmt_float(p.dynamics.margin), "[0, 64] lattice units: positions stay in [-margin, N - 1 + margin]");
-  w.kv("sleep_speed = " + fmt_float(p.dynamics.sleep_speed), "[0, 0.01] lattice units / frame: slower velocities come to rest (with solver.sleep)");
   return w.str();
 }
 
@@ -251,10 +254,7 @@ Params parse_params(const std::string& toml_text, const std::string& source_name
   const toml::table root_tbl = detail::parse_toml(toml_text, ctx);
   Params p = base;
   Section root(ctx, root_tbl, "");
-  read_tissue(root, p);
-  read_material(root, p);
-  read_solver(root, p);
-  read_dynamics(root, p);
+  for (const std::string& section : sections()) read_section(root, section, p);
   root.finish();
   try {
     p.validate();

@@ -12,18 +12,6 @@ void MaterialTable::validate() const {
     const auto& p = points[k];
     std::ostringstream key;
     key << "material.points[" << k << "]";
-    if (!std::isfinite(p.hu)) throw Error(key.str() + ".hu must be finite");
-    if (!(p.tau > 0.0f && p.tau <= 1.0f)) {
-      std::ostringstream m;
-      m << key.str() << ".tau = " << p.tau << " is out of range (0, 1]";
-      throw Error(m.str());
-    }
-    if (!(p.w >= kMinLinkPenalty && p.w <= kMaxLinkPenalty)) {
-      std::ostringstream m;
-      m << key.str() << ".w = " << p.w << " is out of range [" << kMinLinkPenalty << ", " << kMaxLinkPenalty
-        << "] (the propagation counts arrival times in steps of the smallest w: their number must fit 64 bits)";
-      throw Error(m.str());
-    }
     if (k > 0 && !(p.hu > points[k - 1].hu)) {
       std::ostringstream m;
       m << key.str() << ".hu = " << p.hu << " must be greater than the previous point's hu " << points[k - 1].hu;

@@ -1,5 +1,7 @@
 #include "hpcm/params.hpp"
 
+#include "hpcm/param_table.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -40,51 +42,21 @@ AnchorMode parse_anchor_mode(const std::string& s, const std::string& what) {
 }
 
 namespace {
-template <class T>
-void check_range(const std::string& key, T v, T lo, T hi, bool lo_open = false) {
-  const bool ok = std::isfinite(static_cast<double>(v)) && (lo_open ? v > lo : v >= lo) && v <= hi;
-  if (!ok) {
+// The rules that relate several keys; each key's own range is checked first, from the
+// parameter table (param_table.cpp).
+void check_some_inverse_mass(const DynamicsParams& d) {
+  if (*std::max_element(d.inverse_mass.begin(), d.inverse_mass.end()) <= 0.0f)
+    throw Error("dynamics.inverse_mass: at least one class must have an inverse mass > 0");
+}
+
+void check_response_clamp_order(const DynamicsParams& d) {
+  if (d.s_min > d.s_max) {
     std::ostringstream m;
-    m << key << " = " << v << " is out of range " << (lo_open ? "(" : "[") << lo << ", " << hi << "]";
+    m << "dynamics.s_min = " << d.s_min << " must not exceed dynamics.s_max = " << d.s_max;
     throw Error(m.str());
   }
-}
-void check_per_tissue(const std::string& key, const PerTissue& v, float lo, float hi) {
-  for (int t = 0; t < kTissueCount; ++t) check_range(key + "." + tissue_name(t), v[t], lo, hi);
 }
 }  // namespace
-
-void SolverParams::validate() const {
-  check_range("solver.grab_radius", grab_radius, 0.0f, 64.0f, true);
-  if (brick_size != 4 && brick_size != 8 && brick_size != 16)
-    throw Error("solver.brick_size = " + std::to_string(brick_size) + " must be 4, 8 or 16");
-  check_range("solver.relax_sweeps", relax_sweeps, 0, 256);
-  check_range("solver.relax_threshold", relax_threshold, 0.0f, 0.999f);
-  check_range("solver.relax_omega", relax_omega, 1.0f, 1.95f);
-  check_range("solver.max_propagation_sweeps", max_propagation_sweeps, 1, 10000000);
-}
-
-void DynamicsParams::validate() const {
-  check_range("dynamics.alpha", alpha, 0.0f, 1.0f);
-  check_range("dynamics.b0", b0, 0.0f, 1.0f);
-  check_per_tissue("dynamics.b1", b1, 0.0f, 1.0f);
-  check_per_tissue("dynamics.inverse_mass", inverse_mass, 0.0f, 1e6f);
-  if (*std::max_element(inverse_mass.begin(), inverse_mass.end()) <= 0.0f)
-    throw Error("dynamics.inverse_mass: at least one class must have an inverse mass > 0");
-  check_range("dynamics.s_min", s_min, 0.0f, 1.0f);
-  check_range("dynamics.s_max", s_max, 0.0f, 1.0f);
-  if (s_min > s_max) {
-    std::ostringstream m;
-    m << "dynamics.s_min = " << s_min << " must not exceed dynamics.s_max = " << s_max;
-    throw Error(m.str());
-  }
-  check_range("dynamics.dead_zone", dead_zone, 0.0f, 0.999f);
-  check_range("dynamics.v_max", v_max, 0.0f, 10.0f, true);
-  check_range("dynamics.sleep_speed", sleep_speed, 0.0f, 0.01f);
-  check_range("dynamics.beta", beta, 0.0f, 2.0f);
-  check_per_tissue("dynamics.rho", rho, 0.0f, 2.0f);
-  check_range("dynamics.margin", margin, 0.0f, 64.0f);
-}
 
 PerTissue DynamicsParams::response_scale() const {
   const float mx = *std::max_element(inverse_mass.begin(), inverse_mass.end());
@@ -186,10 +158,11 @@ void check_dead_zone_covers_threshold(const Params& p) {
 }  // namespace
 
 void Params::validate() const {
+  check_param_ranges(*this);
   tissue.validate();
   material.validate();
-  solver.validate();
-  dynamics.validate();
+  check_some_inverse_mass(dynamics);
+  check_response_clamp_order(dynamics);
   check_damping_settles(dynamics);
   check_dead_zone_covers_threshold(*this);
   const float limit = dynamics.stable_gain_limit(solver.relax_omega, solver.relax_sweeps);

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "hpcm/config.hpp"
+#include "hpcm/param_table.hpp"
 
 using hpcm::Params;
 namespace cfg = hpcm::config;
@@ -129,6 +130,31 @@ TEST(ParamsFile, DefaultFileDocumentsEveryKeyWithItsRange) {
     EXPECT_TRUE(has_range) << "no range on: " << line;
   }
   EXPECT_EQ(key_lines, 3 + 8 + 13);  // tissue + solver + dynamics keys; material points are an array
+}
+
+// Each key's line in the default file is written from the parameter table: in its section,
+// with the table's range, unit and help as the comment.
+TEST(ParamsFile, DefaultFileCommentsComeFromTheParameterTable) {
+  const std::string text = cfg::default_params_toml();
+  int keys = 0;
+  for (const hpcm::ParamSpec& s : hpcm::param_table()) {
+    if (s.type == hpcm::ParamType::Points || s.type == hpcm::ParamType::PointField) {
+      EXPECT_CONTAINS(text, s.type == hpcm::ParamType::Points ? "points = [" : s.name() + " " + hpcm::range_text(s));
+      continue;
+    }
+    const auto section = text.find("\n[" + s.section() + "]\n");
+    ASSERT_NE(section, std::string::npos) << s.key;
+    const auto next = text.find("\n[", section + 1);
+    const auto line = text.find("\n" + s.name() + " = ", section);
+    ASSERT_TRUE(line != std::string::npos && line < next) << s.key << " is not in its section";
+    const std::string row = text.substr(line + 1, text.find('\n', line + 1) - line - 1);
+    EXPECT_CONTAINS(row, "# ");
+    EXPECT_CONTAINS(row, hpcm::range_text(s));
+    EXPECT_CONTAINS(row, s.help);
+    if (!s.unit.empty()) EXPECT_CONTAINS(row, s.unit);
+    ++keys;
+  }
+  EXPECT_EQ(keys, 3 + 8 + 13);
 }
 
 TEST(ParamsFile, ExactRoundTripOfOddValues) {
