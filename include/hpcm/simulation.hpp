@@ -139,6 +139,12 @@ class Simulation {
   };
   std::uint64_t positions_version_ = 0;
   Metric link_metric_, jacobian_metric_;
+  /// Frame-end positions on the host (of positions_version_ end_pos_version_): the previous
+  /// frame's end, from which the speeds of a frame the frame-end restoration changed are taken.
+  std::vector<Vec3> end_pos_, previous_end_;
+  std::uint64_t end_pos_version_ = ~std::uint64_t{0};
+  /// Downloads the current positions into end_pos_ unless they are there already.
+  const std::vector<Vec3>& frame_end_positions();
   /// Off only with the environment variable HPCM_SKIP_FRAME_END_RESTORE=1: the pipeline before
   /// the frame-end restoration, whose frame ends can fold (tests and before/after comparisons).
   bool frame_end_restore_ = true;

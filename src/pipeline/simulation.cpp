@@ -205,8 +205,46 @@ void Simulation::push_fixed() {
   backend_->set_fixed(idx, targets, flags);
 }
 
+const std::vector<Vec3>& Simulation::frame_end_positions() {
+  if (end_pos_version_ != positions_version_) {
+    backend_->download_positions(end_pos_);
+    end_pos_version_ = positions_version_;
+  }
+  return end_pos_;
+}
+
+namespace {
+
+/// Per-class speeds |X_end(t) - X_end(t-1)| over the counted elements, as the velocity layer
+/// reduces them (SPEC §7), from two host copies of the positions.
+SpeedStats speeds_between(const Model& m, const std::vector<Vec3>& before, const std::vector<Vec3>& after) {
+  std::array<double, kTissueCount> sum{};
+  SpeedStats st;
+  for (Index i = 0; i < m.size(); ++i) {
+    const float sp = norm(after[static_cast<std::size_t>(i)] - before[static_cast<std::size_t>(i)]);
+    if (sp > 0) ++st.moved;
+    if (!m.counted(i)) continue;
+    const int t = m.tissue[static_cast<std::size_t>(i)];
+    sum[t] += sp;
+    st.max[t] = std::max(st.max[t], sp);
+  }
+  for (int t = 0; t < kTissueCount; ++t) st.sum[t] = static_cast<float>(sum[t]);
+  return st;
+}
+
+}  // namespace
+
 FrameReport Simulation::step(const StepOptions& opt) {
   FrameReport r;
+  // The speeds of a frame whose end the link restoration changes cannot come from the velocity
+  // layer (it measured before the restoration): they are taken on the host from the previous
+  // frame's end positions, kept here while speeds are asked for.
+  const bool host_speeds = opt.speeds && frame_end_restore_;
+  if (host_speeds) {
+    frame_end_positions();
+    previous_end_.swap(end_pos_);  // X_end(t-1); end_pos_ is free for this frame's end
+    end_pos_version_ = ~std::uint64_t{0};
+  }
   r.frame = frame_;
   r.deform = grabbing();
   r.grab_offset = r.deform ? norm(tool_offset_) : 0.0f;
@@ -256,11 +294,10 @@ FrameReport Simulation::step(const StepOptions& opt) {
   }
   b.mark(5);
   if (b.active_bricks() > active_chainmail) ++positions_version_;
+  if (host_speeds && r.end_restored_links > 0) sp = speeds_between(model_, previous_end_, frame_end_positions());
   if (opt.cell_jacobian) {
     if (jacobian_metric_.version != positions_version_) {
-      std::vector<Vec3> pos;
-      b.download_positions(pos);
-      const CellJacobianStats cj = cell_jacobian(model_, pos);
+      const CellJacobianStats cj = cell_jacobian(model_, frame_end_positions());
       jacobian_metric_ = {positions_version_, cj.min_det, cj.folded};
     }
     r.min_cell_jacobian = jacobian_metric_.value;

@@ -172,17 +172,13 @@ TEST(FramePipeline, PaperProtocolFramesOnPhantom) {
       mx[m.tissue[i]] = std::max(mx[m.tissue[i]], sp);
       ++count[m.tissue[i]];
     }
-    // The speeds are the velocity layer's: in a frame whose end the link restoration changed
-    // (end_restored_links > 0) they miss its correction of the elements it moved (a few per
-    // cent of a class's mean in the pull's first frames here); every other frame is exact.
-    const bool exact = r.end_restored_links == 0;
-    if (!exact) ++end_restored_frames;
     for (int t = 0; t < kTissueCount; ++t) {
       const float mean = count[t] ? sum[t] / count[t] : 0.0f;
-      EXPECT_NEAR(r.mean_speed[t], mean, 1e-6f + (exact ? 1e-4f : 0.05f) * mean) << "class " << t << ", frame " << frame;
-      if (exact) EXPECT_EQ(r.max_speed[t], mx[t]) << "class " << t << ", frame " << frame;
+      EXPECT_NEAR(r.mean_speed[t], mean, 1e-6f + 1e-4f * mean) << "class " << t << ", frame " << frame;
+      EXPECT_EQ(r.max_speed[t], mx[t]) << "class " << t << ", frame " << frame;
     }
-    if (exact) EXPECT_EQ(r.moved_elements, moved) << "frame " << frame;
+    EXPECT_EQ(r.moved_elements, moved) << "frame " << frame;
+    if (r.end_restored_links > 0) ++end_restored_frames;
     if (frame >= release && r.mean_speed[static_cast<int>(Tissue::SkinFat)] > 0) ++moving_after_release;
     // Stage times.
     EXPECT_GE(r.chainmail_ms, 0.0);
@@ -194,8 +190,9 @@ TEST(FramePipeline, PaperProtocolFramesOnPhantom) {
   }
   // The residual motion after release is what the idle stage must preserve.
   EXPECT_GE(moving_after_release, 10);
-  // Most frames are compared exactly.
-  EXPECT_LE(end_restored_frames, frame / 4) << "of " << frame << " frames";
+  // Frames whose end the link restoration changed are among them (their speeds come from the
+  // host, the others' from the velocity layer).
+  EXPECT_GT(end_restored_frames, 0);
 }
 
 // Same input, same result (SPEC §8.6, CPU): the full pipeline under condition C on a small
