@@ -52,7 +52,9 @@ void check_grab_radius(float radius, const std::string& what);
 void check_grab_radius_mm(const Model& m, float radius_mm, const std::string& what);
 
 struct StepOptions {
-  bool speeds = true;               ///< reduce per-tissue speeds (costs a little)
+  bool speeds = true;               ///< reduce per-tissue speeds (costs a little: the velocity layer's reduction, and a
+                                    ///< download of the frame-end positions per frame with motion, for the frames
+                                    ///< whose end the link restoration changes)
   bool link_violation = false;      ///< measure max link violation over all links (O(N))
   bool cell_jacobian = false;       ///< measure the smallest cell Jacobian determinant at frame end (O(N))
 };
