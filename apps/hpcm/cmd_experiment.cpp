@@ -100,6 +100,7 @@ void register_experiment(CLI::App& app) {
     std::string params, scenario, out, backend = "cpu";
     int settle = 2000;
     bool no_report = false;
+    bool strict = false;
   };
   auto o = std::make_shared<Opts>();
   o->source.default_phantom = {128, 128, 75};
@@ -111,6 +112,9 @@ void register_experiment(CLI::App& app) {
   cmd->add_option("--backend", o->backend, "cpu | cuda")->capture_default_str();
   cmd->add_option("--out", o->out, "Output folder (written as OUT.incomplete, renamed to OUT when it finishes)")->required();
   cmd->add_flag("--no-report", o->no_report, "Write the CSV/JSON files only (no figures, no report.md)");
+  cmd->add_flag("--strict", o->strict,
+                "Exit with an error (after writing every file) when a frame of any condition folds (a cell corner "
+                "determinant <= 0 at frame end)");
   cmd->callback([o] {
     const Params p = load_params_option(o->params);
     ExperimentOptions eo;
@@ -251,6 +255,10 @@ void register_experiment(CLI::App& app) {
     }
     out.commit();
     print_limited_pulls(r, m, sc_label);
+    std::vector<std::string> folds;
+    for (const auto& c : r.conditions)
+      if (c.folded.any()) folds.push_back("condition " + c.label + ": " + c.folded.text());
+    for (const std::string& f : folds) std::fprintf(stderr, "hpcm: warning: %s\n", f.c_str());
     std::printf("experiment: %lld elements, checks: %d held, %d failed, %d not applicable (of %zu); wrote "
                 "%s/{curves.csv,table2.csv,table3.csv,activity.csv,summary.json%s}\n",
                 static_cast<long long>(m.size()), r.count(CheckStatus::Held), r.count(CheckStatus::Failed),
@@ -260,6 +268,11 @@ void register_experiment(CLI::App& app) {
       if (ch.failed())
         std::printf("  failed: %s: value %.6g, threshold %.6g (%s)\n", ch.name.c_str(), ch.value, ch.threshold,
                     ch.description.c_str());
+    if (o->strict && !folds.empty()) {
+      std::string msg = "--strict: frames fold, the results in " + out.final_path() + " must not be trusted:";
+      for (const std::string& f : folds) msg += "\n  " + f;
+      throw Error(msg);
+    }
   });
 }
 

@@ -4,6 +4,7 @@
 
 #include "cli_common.hpp"
 #include "hpcm/config.hpp"
+#include "hpcm/folded_frames.hpp"
 #include "memory_estimate.hpp"
 #include "output_dir.hpp"
 #include "pull_limit_notes.hpp"
@@ -132,7 +133,8 @@ void register_run(CLI::App& app) {
     const Scenario sc = resolve_scenario(*o);
     const std::string sc_label = scenario_label(o->scenario);
     if (o->export_every > 0 && o->export_dir.empty()) throw Error("--export-every needs --export DIR");
-    if (o->strict && o->export_dir.empty()) throw Error("--strict needs --export DIR (it judges the exports)");
+    if (o->strict && o->no_link_check)
+      throw Error("--strict judges every frame's cell determinants, which --no-link-check skips: give one of them");
     check_memory_before_load(o->source, kRunBytesPerElement);
     RunOutputs out(o->out, o->export_dir);
     RunOptions ro = *o;
@@ -159,6 +161,7 @@ void register_run(CLI::App& app) {
     so.cell_jacobian = !o->no_link_check;
     const bool progress = want_progress();
     LimitedPullTracker limited(sc);
+    FoldedFrames folded;
     float worst = 0;
     try {
       for (int f = 0; f < frames; ++f) {
@@ -169,6 +172,7 @@ void register_run(CLI::App& app) {
           rethrow_in_scenario(e, sc, sc_label, f);
         }
         worst = std::max(worst, r.max_link_violation);
+        folded.add(r);
         csv.put(frames_csv_row(r));
         if (const auto ended = limited.after_frame(r, sim.tool_offset(), sim.requested_offset()))
           print_limited_pull(*ended, sim.model(), sc_label);
@@ -187,11 +191,16 @@ void register_run(CLI::App& app) {
                 out.out_shown().c_str());
     if (so.link_violation) std::printf(" (max link violation %.3g)", worst);
     std::printf("\n");
-    if (o->strict && !exporter.problems().empty()) {
-      std::string msg = "--strict: the exports in " + out.export_shown() +
-                        " were written but must not be trusted as they are:";
-      for (const std::string& p : exporter.problems()) msg += "\n  " + p;
-      msg += "\n  (figures per export in " + out.export_shown() + "/export.json)";
+    if (folded.any()) std::fprintf(stderr, "hpcm: warning: %s\n", folded.text().c_str());
+    if (o->strict && (folded.any() || !exporter.problems().empty())) {
+      std::string msg = "--strict: ";
+      if (folded.any()) msg += "frames fold, " + out.out_shown() + "/frames.csv must not be trusted:\n  " + folded.text();
+      if (folded.any() && !exporter.problems().empty()) msg += "\n";
+      if (!exporter.problems().empty()) {
+        msg += "the exports in " + out.export_shown() + " were written but must not be trusted as they are:";
+        for (const std::string& p : exporter.problems()) msg += "\n  " + p;
+        msg += "\n  (figures per export in " + out.export_shown() + "/export.json)";
+      }
       throw Error(msg);
     }
   });

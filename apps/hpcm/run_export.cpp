@@ -21,8 +21,9 @@ void add_export_options(CLI::App* cmd, RunOptions& o) {
                   "nearest label: warped_<name>_<tag><ext> (repeatable; needs --export)")
       ->allow_extra_args(false);
   cmd->add_flag("--strict", o.strict,
-                "Exit with an error (after writing every file) when an exported displacement field folds or the "
-                "deformed CT's inverse mapping did not converge");
+                "Exit with an error (after writing every file) when a frame folds (a cell corner determinant <= 0 at "
+                "frame end), an exported displacement field folds or the deformed CT's inverse mapping did not "
+                "converge");
 }
 
 #if defined(HPCM_WITH_ITK)
@@ -125,7 +126,6 @@ ExportSession::ExportSession(const RunOptions& o, Simulation& sim) : o_(o), sim_
   if (o_.export_every < 0)
     throw Error("--export-every " + std::to_string(o_.export_every) + " is out of range: must be >= 0");
   if (o_.export_every > 0 && o_.export_dir.empty()) throw Error("--export-every needs --export DIR");
-  if (o_.strict && o_.export_dir.empty()) throw Error("--strict needs --export DIR");
   if (!o_.warp_labels.empty() && o_.export_dir.empty()) throw Error("--warp-labels needs --export DIR");
   if (o_.export_dir.empty()) return;
 #if defined(HPCM_WITH_ITK)

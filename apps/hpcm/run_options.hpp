@@ -22,7 +22,7 @@ struct RunOptions {
   std::string export_dir;     ///< where the exports are written (the staging folder during a run)
   std::string export_shown;   ///< the --export folder as given, for messages (empty: export_dir)
   int export_every = 0;
-  bool strict = false;        ///< exit non-zero when an export folds or its inverse mapping did not converge
+  bool strict = false;        ///< exit non-zero when a frame or an export folds or an inverse mapping did not converge
   std::vector<std::string> warp_labels;  ///< label maps on the input's grid, deformed with every export
 };
 

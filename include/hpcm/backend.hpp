@@ -53,6 +53,10 @@ class Backend {
   /// The last step of every ChainMail stage: every link back in its box (and every element in
   /// the boundary box) where something left it, FIXED elements untouched (docs/solver.md).
   virtual RestoreStats restore_links() = 0;
+  /// The same restoration after the velocity layer, at frame end: the layer's step and the
+  /// boundary clamp can leave links outside their boxes and fold cells (docs/solver.md, "No
+  /// fold"). X- follows every element it moves: frame-end positions are next frame's X- (SPEC §5).
+  virtual RestoreStats restore_frame_end() = 0;
   /// The independent-velocity layer (SPEC §5) + boundary clamp + frame-end snapshot.
   /// Fills `speeds` when non-null (only then are speeds reduced).
   virtual void velocity_layer(SpeedStats* speeds) = 0;

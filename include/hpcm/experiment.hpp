@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "hpcm/folded_frames.hpp"
 #include "hpcm/scenario.hpp"
 
 namespace hpcm {
@@ -33,6 +34,7 @@ struct ConditionResult {
   float max_link_violation = 0;           ///< largest link violation after any ChainMail stage
   float min_cell_jacobian = 1;            ///< smallest cell corner determinant at any frame end
   Index max_folded_cells = 0;             ///< most folded cells at any frame end
+  FoldedFrames folded;                    ///< the frames that fold, protocol and settle frames
   // The tool: the largest offset the protocol asked for and the largest the tissue allowed.
   float max_requested_offset = 0, max_achieved_offset = 0;
   int first_limited_frame = -1;           ///< first frame the pull was limited (-1: never)

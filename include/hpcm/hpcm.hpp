@@ -2,6 +2,7 @@
 // Umbrella header of the hpcm library.
 #include "hpcm/backend.hpp"
 #include "hpcm/backend_factory.hpp"
+#include "hpcm/folded_frames.hpp"
 #include "hpcm/material.hpp"
 #include "hpcm/model.hpp"
 #include "hpcm/param_table.hpp"

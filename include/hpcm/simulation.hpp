@@ -1,7 +1,8 @@
 #pragma once
 // The frame pipeline (SPEC §6), written once and driving any Backend:
 //   X- <- X;  deform stage (targets, propagate, relax K) while a grab is held, else idle
-//   stage (relax K only, never propagate);  velocity layer -> X_{t+1}; boundary clamp.
+//   stage (relax K only, never propagate);  velocity layer -> X_{t+1}; boundary clamp;
+//   frame-end link restoration (the layer's step can fold cells; docs/solver.md, "No fold").
 #include <memory>
 #include <string>
 #include <vector>
@@ -24,6 +25,8 @@ struct FrameReport {
   bool tool_limited = false;    ///< the tissue could not follow the tool this far: the pull was limited
   Index restored_links = 0;     ///< links the restoration found outside their box (then restored)
   float restore_violation = 0;  ///< the largest of those violations before restoring
+  Index end_restored_links = 0;   ///< links the velocity layer left outside their box (restored at frame end)
+  float end_restore_violation = 0;  ///< the largest of those violations before restoring
   Index moved_elements = 0;     ///< elements whose position changed this frame
   Index active_bricks = 0;       ///< bricks that had work this frame (any stage)
   Index active_elements = 0;    ///< elements in those bricks
@@ -50,7 +53,9 @@ void check_grab_radius(float radius, const std::string& what);
 void check_grab_radius_mm(const Model& m, float radius_mm, const std::string& what);
 
 struct StepOptions {
-  bool speeds = true;               ///< reduce per-tissue speeds (costs a little)
+  bool speeds = true;               ///< reduce per-tissue speeds (costs a little: the velocity layer's reduction, and a
+                                    ///< download of the frame-end positions per frame with motion, for the frames
+                                    ///< whose end the link restoration changes)
   bool link_violation = false;      ///< measure max link violation over all links (O(N))
   bool cell_jacobian = false;       ///< measure the smallest cell Jacobian determinant at frame end (O(N))
 };
@@ -140,6 +145,15 @@ class Simulation {
   };
   std::uint64_t positions_version_ = 0;
   Metric link_metric_, jacobian_metric_;
+  /// Frame-end displacements on the host (of positions_version_ end_pos_version_): the previous
+  /// frame's end, from which the speeds of a frame the frame-end restoration changed are taken.
+  std::vector<Vec3> end_pos_, previous_end_;
+  std::uint64_t end_pos_version_ = ~std::uint64_t{0};
+  /// Downloads the current displacements into end_pos_ unless they are there already.
+  const std::vector<Vec3>& frame_end_displacements();
+  /// Off only with the environment variable HPCM_SKIP_FRAME_END_RESTORE=1: the pipeline before
+  /// the frame-end restoration, whose frame ends can fold (tests and before/after comparisons).
+  bool frame_end_restore_ = true;
 };
 
 }  // namespace hpcm

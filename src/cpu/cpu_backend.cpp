@@ -6,16 +6,22 @@ namespace hpcm::cpu {
 
 namespace {
 
-/// The link restoration's view of the storage.
+/// The link restoration's view of the storage. At frame end (after the velocity layer) X-
+/// follows X, so that it stays the frame-end position.
 class StorageAccess final : public solver::RestoreAccess {
  public:
-  explicit StorageAccess(Storage& st) : st_(st) {}
+  StorageAccess(Storage& st, bool frame_end) : st_(st), frame_end_(frame_end) {}
   Vec3 displacement(Index i) const override { return st_.displacement(i); }
-  void set_coordinate(Index i, int axis, float value) override { st_.p[axis][static_cast<std::size_t>(st_.lay.at(i))] = value; }
+  void set_coordinate(Index i, int axis, float value) override {
+    const std::size_t k = static_cast<std::size_t>(st_.lay.at(i));
+    st_.p[axis][k] = value;
+    if (frame_end_) st_.q[axis][k] = value;
+  }
   bool fixed(Index i) const override { return (st_.flags[static_cast<std::size_t>(st_.lay.at(i))] & kFixed) != 0; }
 
  private:
   Storage& st_;
+  bool frame_end_;
 };
 
 }  // namespace
@@ -117,7 +123,11 @@ RelaxStats CpuBackend::relax(int sweeps) {
   return relaxation_.run(ctx, sweeps, hot_, touched_, worked_, *pool_);
 }
 
-RestoreStats CpuBackend::restore_links() {
+RestoreStats CpuBackend::restore_links() { return restore(false); }
+
+RestoreStats CpuBackend::restore_frame_end() { return restore(true); }
+
+RestoreStats CpuBackend::restore(bool frame_end) {
   RestoreStats rs;
   for (std::size_t b = 0; b < unchecked_.size(); ++b) unchecked_[b] |= touched_[b];
   if (!p_.solver.sleep) mark_all(unchecked_);
@@ -125,7 +135,7 @@ RestoreStats CpuBackend::restore_links() {
   std::fill(unchecked_.begin(), unchecked_.end(), 0);
   if (check_list_.empty()) return rs;
   for (Index b : check_list_) worked_[static_cast<std::size_t>(b)] = 1;
-  StorageAccess access(st_);
+  StorageAccess access(st_, frame_end);
   seeds_.clear();
   check_.run(st_, grid_, check_list_, wall_, seeds_, rs, *pool_);
   if (seeds_.empty()) return rs;

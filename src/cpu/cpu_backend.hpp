@@ -34,6 +34,7 @@ class CpuBackend final : public Backend {
   PropagateStats propagate() override;
   RelaxStats relax(int sweeps) override;
   RestoreStats restore_links() override;
+  RestoreStats restore_frame_end() override;
   void velocity_layer(SpeedStats* speeds) override;
   Index active_bricks() const override;
   Index active_elements() const override;
@@ -54,6 +55,8 @@ class CpuBackend final : public Backend {
 
  private:
   void mark_all(std::vector<std::uint8_t>& flags) { std::fill(flags.begin(), flags.end(), 1); }
+  /// restore_links(); with `frame_end`, X- follows every element it moves.
+  RestoreStats restore(bool frame_end);
 
   const Model* m_ = nullptr;
   Params p_;

@@ -311,7 +311,11 @@ class DeviceBackend final : public Backend {
   /// (BrickCache): only the bricks it reaches are copied, so the copies follow the region it
   /// works on, not the lattice. The FIXED set is known on the host (fixed_); only the moved
   /// elements go back. A device schedule of the restoration itself is future work.
-  RestoreStats restore_links() override {
+  RestoreStats restore_links() override { return restore(false); }
+  /// After the velocity layer: X- follows every element the restoration moves.
+  RestoreStats restore_frame_end() override { return restore(true); }
+
+  RestoreStats restore(bool frame_end) {
     const std::size_t NB = static_cast<std::size_t>(L_.grid.count);
     CheckArgs ca;
     ca.L = L_;
@@ -351,7 +355,7 @@ class DeviceBackend final : public Backend {
       throw;
     }
     for (int e : fixed_) host_fixed_[static_cast<std::size_t>(e)] = 0;
-    upload_moved();
+    upload_moved(frame_end);
     cache_clear();
     return st;
   }
@@ -569,7 +573,7 @@ class DeviceBackend final : public Backend {
     cap = room;
   }
   /// Uploads the elements the restoration moved and puts them in place on the device.
-  void upload_moved() {
+  void upload_moved(bool frame_end) {
     std::sort(moved_elements_.begin(), moved_elements_.end());
     moved_elements_.erase(std::unique(moved_elements_.begin(), moved_elements_.end()), moved_elements_.end());
     const std::size_t n = moved_elements_.size();
@@ -584,6 +588,7 @@ class DeviceBackend final : public Backend {
     a.elements = scatter_elements_;
     a.positions = scatter_positions_;
     a.n = static_cast<int>(n);
+    a.snapshot = frame_end;
     x_.scatter_positions(a);
     x_.sync();  // the host vectors above are reused by the next restoration
   }

@@ -705,6 +705,7 @@ struct ScatterArgs {
   const int* elements = nullptr;
   const Vec3* positions = nullptr;
   int n = 0;
+  bool snapshot = false;  ///< frame end (after the velocity layer): X- follows X
 };
 
 /// Thread per moved element (every writer of a brick flag stores the same value).
@@ -712,6 +713,7 @@ HPCM_HD inline void scatter_position_thread(const ScatterArgs& a, long long j) {
   if (j >= a.n) return;
   const long long e = a.elements[j];
   a.L.disp[e] = a.positions[j];
+  if (a.snapshot) a.L.pre[e] = a.positions[j];
   const long long b = a.L.brick_of_index(e);
   a.L.touched[b] = 1;
   a.L.hot[b] = 1;

@@ -122,6 +122,7 @@ ConditionResult run_condition(const Model& model, Params params, DampingMode mod
     r.max_link_violation = std::max(r.max_link_violation, f.max_link_violation);
     r.min_cell_jacobian = std::min(r.min_cell_jacobian, f.min_cell_jacobian);
     r.max_folded_cells = std::max(r.max_folded_cells, f.folded_cells);
+    r.folded.add(f);
   };
   LimitedPullTracker limited(opt.scenario);
   // SPEC §8.8: speeds of the recorded frames split by distance from the grab centre, from the

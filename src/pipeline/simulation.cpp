@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <string>
 #include <memory>
 #include <sstream>
@@ -41,6 +42,8 @@ Simulation::Simulation(Model model, Params params, BackendKind backend)
 Simulation::Simulation(Model model, Params params, std::unique_ptr<Backend> backend)
     : model_(std::move(model)), params_(std::move(params)), backend_(std::move(backend)) {
   params_.validate();
+  const char* skip = std::getenv("HPCM_SKIP_FRAME_END_RESTORE");
+  frame_end_restore_ = !(skip && std::string(skip) == "1");
   if (!backend_) throw Error("Simulation: no backend");
   reset();
 }
@@ -202,8 +205,46 @@ void Simulation::push_fixed() {
   backend_->set_fixed(idx, targets, flags);
 }
 
+const std::vector<Vec3>& Simulation::frame_end_displacements() {
+  if (end_pos_version_ != positions_version_) {
+    backend_->download_displacements(end_pos_);
+    end_pos_version_ = positions_version_;
+  }
+  return end_pos_;
+}
+
+namespace {
+
+/// Per-class speeds |X_end(t) - X_end(t-1)| over the counted elements, as the velocity layer
+/// reduces them (SPEC §7), from two host copies of the displacements (u_end(t) - u_end(t-1)).
+SpeedStats speeds_between(const Model& m, const std::vector<Vec3>& before, const std::vector<Vec3>& after) {
+  std::array<double, kTissueCount> sum{};
+  SpeedStats st;
+  for (Index i = 0; i < m.size(); ++i) {
+    const float sp = norm(after[static_cast<std::size_t>(i)] - before[static_cast<std::size_t>(i)]);
+    if (sp > 0) ++st.moved;
+    if (!m.counted(i)) continue;
+    const int t = m.tissue[static_cast<std::size_t>(i)];
+    sum[t] += sp;
+    st.max[t] = std::max(st.max[t], sp);
+  }
+  for (int t = 0; t < kTissueCount; ++t) st.sum[t] = static_cast<float>(sum[t]);
+  return st;
+}
+
+}  // namespace
+
 FrameReport Simulation::step(const StepOptions& opt) {
   FrameReport r;
+  // The speeds of a frame whose end the link restoration changes cannot come from the velocity
+  // layer (it measured before the restoration): they are taken on the host from the previous
+  // frame's end positions, kept here while speeds are asked for.
+  const bool host_speeds = opt.speeds && frame_end_restore_;
+  if (host_speeds) {
+    frame_end_displacements();
+    previous_end_.swap(end_pos_);  // X_end(t-1); end_pos_ is free for this frame's end
+    end_pos_version_ = ~std::uint64_t{0};
+  }
   r.frame = frame_;
   r.deform = grabbing();
   r.grab_offset = r.deform ? norm(tool_offset_) : 0.0f;
@@ -243,19 +284,28 @@ FrameReport Simulation::step(const StepOptions& opt) {
   SpeedStats sp;
   b.velocity_layer(opt.speeds ? &sp : nullptr);  // X+ -> X_{t+1}, V_t; boundary clamp; frame-end snapshot
   b.mark(4);
+  if (frame_end_restore_) {
+    // The layer moves neighbours by different steps (V differs by class, dead zone, clamp,
+    // FIXED neighbours) and the boundary clamp flattens: links leave their boxes and cells can
+    // fold. Restored here, the frame ends with every link in its box, hence fold-free.
+    const RestoreStats end = b.restore_frame_end();
+    r.end_restored_links = end.violated_links;
+    r.end_restore_violation = end.max_violation;
+    if (end.moved > 0) ++positions_version_;
+  }
+  b.mark(5);
   if (b.active_bricks() > active_chainmail) ++positions_version_;
+  if (host_speeds && r.end_restored_links > 0) sp = speeds_between(model_, previous_end_, frame_end_displacements());
   if (opt.cell_jacobian) {
     if (jacobian_metric_.version != positions_version_) {
-      std::vector<Vec3> disp;
-      b.download_displacements(disp);
-      const CellJacobianStats cj = cell_jacobian(model_, disp);
+      const CellJacobianStats cj = cell_jacobian(model_, frame_end_displacements());
       jacobian_metric_ = {positions_version_, cj.min_det, cj.folded};
     }
     r.min_cell_jacobian = jacobian_metric_.value;
     r.folded_cells = jacobian_metric_.count;
   }
   r.snapshot_ms = b.elapsed_ms(0, 1);
-  r.chainmail_ms = b.elapsed_ms(1, 2);
+  r.chainmail_ms = b.elapsed_ms(1, 2) + b.elapsed_ms(4, 5);  // the frame-end restoration is ChainMail work
   r.inertia_ms = b.elapsed_ms(3, 4);
   r.sim_total_ms = r.snapshot_ms + r.chainmail_ms + r.inertia_ms;
   r.active_bricks = b.active_bricks();

@@ -133,8 +133,13 @@ def test_dicom_series_export_is_fold_free_and_converged(tmp_path):
     print(f"DICOM f=2, 30 frames: min det {dets.min():.6g}, residual {inv['max_residual_mm']:.3g} mm")
 
 
-def test_strict_needs_export(tmp_path):
+def test_strict_without_export_judges_the_frames(tmp_path):
+    # Without --export, --strict judges the frames (fold-free here: exit 0); with --no-link-check
+    # it could not, and says so before anything is written.
     r = subprocess.run([HPCM, "run", "--phantom", "16,16,12", "--frames", "2", "--strict", "--out", str(tmp_path / "run")],
                        capture_output=True, text=True)
-    assert r.returncode != 0 and "--strict needs --export" in r.stderr, r.stderr
-    assert not (tmp_path / "run").exists()
+    assert r.returncode == 0 and "fold" not in r.stderr, r.stderr
+    r = subprocess.run([HPCM, "run", "--phantom", "16,16,12", "--frames", "2", "--strict", "--no-link-check", "--out",
+                        str(tmp_path / "run2")], capture_output=True, text=True)
+    assert r.returncode != 0 and "--no-link-check" in r.stderr, r.stderr
+    assert not (tmp_path / "run2").exists()
