@@ -159,7 +159,7 @@ inline void check_waves(const Factory& make_device, const Model& m, const Params
     cpu->download(sc);
     dev->download(sd);
     const float dp = max_diff(sc.disp, sd.disp), dt = time_diff(sc.time, sd.time);
-    ASSERT_LE(dp, tol.disp) << "propagation positions";
+    ASSERT_LE(dp, tol.pos) << "propagation positions";
     ASSERT_GE(dt, 0.0f) << "propagation: the sets of reached elements differ";
     ASSERT_LE(dt, tol.pos) << "propagation arrival times";
     EXPECT_EQ(sc.flags, sd.flags);
@@ -181,7 +181,7 @@ inline void check_waves(const Factory& make_device, const Model& m, const Params
     cpu->download(sc);
     dev->download(sd);
     const float dl = std::max(max_diff(sc.disp, sd.disp), max_diff(sc.vel, sd.vel));
-    ASSERT_LE(dl, tol.disp) << "velocity layer positions / velocities";
+    ASSERT_LE(dl, tol.pos) << "velocity layer positions / velocities";
     worst_p = std::max(worst_p, dl);
     for (int t = 0; t < kTissueCount; ++t) {
       const float n = static_cast<float>(std::max<Index>(m.class_count[t], 1));
@@ -279,7 +279,7 @@ inline void check_pipeline(const Factory& make_device, const Model& m, const Par
     const State& xa = a.state();
     const State& xb = b.state();
     const float d = std::max(max_diff(xa.disp, xb.disp), max_diff(xa.vel, xb.vel));
-    ASSERT_LE(d, tol.disp) << "positions / velocities";
+    ASSERT_LE(d, tol.pos) << "positions / velocities";
     worst = std::max(worst, d);
     for (int t = 0; t < kTissueCount; ++t) {
       const float dm = relative_diff(ra.mean_speed[t], rb.mean_speed[t]), dx = float_diff(ra.max_speed[t], rb.max_speed[t]);

@@ -8,6 +8,7 @@
 #include <random>
 
 #include "dynamics/velocity_update.hpp"
+#include "hpcm/param_table.hpp"
 #include "hpcm/params.hpp"
 
 using namespace hpcm;
@@ -56,8 +57,16 @@ DynamicsParams visco_params() {
   return p;
 }
 
+/// Every dynamics key of `d` within its range (the parameter table's checks; the rules that
+/// relate several sections are not what these tests are about).
+void check_ranges(const DynamicsParams& d) {
+  Params all;
+  all.dynamics = d;
+  check_param_ranges(all);
+}
+
 LayerConstants K(const DynamicsParams& p) {
-  p.validate();
+  check_ranges(p);
   return make_constants(p, kDims);
 }
 
@@ -90,7 +99,7 @@ TEST(ResponseScale, ClampedIntoSminSmax) {
   p.inverse_mass = {2.0f, 4.0f, 1.0f, 0.0f};  // normalised {0.5, 1, 0.25, 0}
   p.s_min = 0.3f;
   p.s_max = 0.8f;
-  p.validate();
+  check_ranges(p);
   const PerTissue s = p.response_scale();  // clamp into [0.3, 0.8]: {0.5, 0.8, 0.3, 0.3}
   EXPECT_FLOAT_EQ(s[kAir], 0.5f);
   EXPECT_FLOAT_EQ(s[kSkin], 0.8f);

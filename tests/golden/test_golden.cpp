@@ -77,7 +77,7 @@ struct FieldHash {
 /// field of State changes only this function (then regenerate).
 std::vector<FieldHash> state_digest(Simulation& sim) {
   const State& s = sim.state();
-  return {{"pos", fnv1a(s.pos)}, {"vel", fnv1a(s.vel)}, {"time", fnv1a(s.time)}, {"flags", fnv1a(s.flags)}};
+  return {{"disp", fnv1a(s.disp)}, {"vel", fnv1a(s.vel)}, {"time", fnv1a(s.time)}, {"flags", fnv1a(s.flags)}};
 }
 
 // --- a run's table: frames.csv's non-timing columns at full precision, and state hashes ---
