@@ -1,13 +1,14 @@
 #!/usr/bin/env bash
 # Gathers what scripts/device_cuda_check.sh needs on a GPU machine without Debian packages:
-#   OUT/bin/{hpcm,hpcm_test_cuda_parity}, OUT/lib/<their shared libraries but the C library>,
-#   OUT/data/abdomen_ct.nii.gz
+#   OUT/bin/{hpcm,hpcm_test_cuda_parity,hpcm_test_position_independence}, OUT/lib/<their shared
+#   libraries but the C library>, OUT/data/abdomen_ct.nii.gz
 # Usage: scripts/device_bundle.sh BUILD_DIR OUT_DIR [DATA_DIR]   (DATA_DIR: ../shared/data)
 set -euo pipefail
 build=$1
 out=$2
 data=${3:-"$(cd "$(dirname "$0")/.." && pwd)/../shared/data"}
-bins=("$build/apps/hpcm/hpcm" "$build/tests/cuda/hpcm_test_cuda_parity")
+bins=("$build/apps/hpcm/hpcm" "$build/tests/cuda/hpcm_test_cuda_parity"
+      "$build/tests/pipeline/hpcm_test_position_independence")
 for b in "${bins[@]}"; do
   [ -x "$b" ] || { echo "device_bundle: $b is missing (build with a CUDA compiler first)" >&2; exit 2; }
 done

@@ -25,8 +25,8 @@ struct FrameReport {
   bool tool_limited = false;    ///< the tissue could not follow the tool this far: the pull was limited
   Index restored_links = 0;     ///< links the restoration found outside their box (then restored)
   float restore_violation = 0;  ///< the largest of those violations before restoring
-  Index end_restored_links = 0;   ///< links the velocity layer left outside their box (restored at frame end)
-  float end_restore_violation = 0;  ///< the largest of those violations before restoring
+  Index end_folded_cells = 0;  ///< cells the velocity layer folded, unfolded by the frame-end fold guard
+  Index end_guard_moved = 0;   ///< elements the fold guard moved (0: the frame end is the velocity layer's)
   Index moved_elements = 0;     ///< elements whose position changed this frame
   Index active_bricks = 0;       ///< bricks that had work this frame (any stage)
   Index active_elements = 0;    ///< elements in those bricks

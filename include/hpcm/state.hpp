@@ -54,4 +54,12 @@ struct CellJacobianStats {
 /// From the displacements: edges unit_a + (u_next - u), in double.
 CellJacobianStats cell_jacobian(const Model& m, const std::vector<Vec3>& disp);
 
+/// The determinant at one cell corner from the displacement differences along its three edges
+/// (each oriented along +x, +y, +z): the unit rest edge plus the difference, in double.
+inline double corner_determinant(Vec3 dx, Vec3 dy, Vec3 dz) {
+  const double ex[3] = {1.0 + dx.x, dx.y, dx.z}, ey[3] = {dy.x, 1.0 + dy.y, dy.z}, ez[3] = {dz.x, dz.y, 1.0 + dz.z};
+  return ex[0] * (ey[1] * ez[2] - ey[2] * ez[1]) - ex[1] * (ey[0] * ez[2] - ey[2] * ez[0]) +
+         ex[2] * (ey[0] * ez[1] - ey[1] * ez[0]);
+}
+
 }  // namespace hpcm

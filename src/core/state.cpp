@@ -66,19 +66,10 @@ CellJacobianStats cell_jacobian(const Model& m, const std::vector<Vec3>& disp) {
             for (int j = 0; j < 2; ++j)
               for (int i = 0; i < 2; ++i) {
                 const Index c = base + i + j * sy + k * sz;
-                // Edges to the corner's neighbours inside the cell, oriented along +x, +y, +z:
-                // the unit rest edge plus the difference of the displacements, in double.
+                // Edges to the corner's neighbours inside the cell, oriented along +x, +y, +z.
                 const Vec3 u = disp[c];
-                auto edge = [](Vec3 du, int a) {
-                  std::array<double, 3> e{du.x, du.y, du.z};
-                  e[a] += 1.0;
-                  return e;
-                };
-                const auto ex = edge(i ? u - disp[c - 1] : disp[c + 1] - u, 0);
-                const auto ey = edge(j ? u - disp[c - sy] : disp[c + sy] - u, 1);
-                const auto ez = edge(k ? u - disp[c - sz] : disp[c + sz] - u, 2);
-                const double det = ex[0] * (ey[1] * ez[2] - ey[2] * ez[1]) - ex[1] * (ey[0] * ez[2] - ey[2] * ez[0]) +
-                                   ex[2] * (ey[0] * ez[1] - ey[1] * ez[0]);
+                const double det = corner_determinant(i ? u - disp[c - 1] : disp[c + 1] - u, j ? u - disp[c - sy] : disp[c + sy] - u,
+                                                      k ? u - disp[c - sz] : disp[c + sz] - u);
                 cell_min = std::min(cell_min, det);
               }
           min_det = std::min(min_det, cell_min);

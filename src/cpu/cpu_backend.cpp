@@ -132,7 +132,9 @@ RestoreStats CpuBackend::restore(bool frame_end) {
   for (std::size_t b = 0; b < unchecked_.size(); ++b) unchecked_[b] |= touched_[b];
   if (!p_.solver.sleep) mark_all(unchecked_);
   grid_.dilate_to_list(unchecked_, check_list_);
-  std::fill(unchecked_.begin(), unchecked_.end(), 0);
+  // The frame-end guard leaves the bricks unchecked: the next ChainMail stage still holds every
+  // link the velocity layer moved to its box.
+  if (!frame_end) std::fill(unchecked_.begin(), unchecked_.end(), 0);
   if (check_list_.empty()) return rs;
   for (Index b : check_list_) worked_[static_cast<std::size_t>(b)] = 1;
   StorageAccess access(st_, frame_end);
@@ -140,7 +142,12 @@ RestoreStats CpuBackend::restore(bool frame_end) {
   check_.run(st_, grid_, check_list_, wall_, seeds_, rs, *pool_);
   if (seeds_.empty()) return rs;
   std::vector<std::uint8_t> moved(touched_.size(), 0);
-  restorer_.restore(*m_, grid_, seeds_, access, wall_, moved, rs);
+  if (frame_end) {
+    rs = {};
+    restorer_.guard_folds(*m_, grid_, seeds_, access, wall_, moved, rs);
+  } else {
+    restorer_.restore(*m_, grid_, seeds_, access, wall_, moved, rs);
+  }
   // Bricks the restoration moved are touched (the velocity layer visits them); relaxation
   // looks at them again next frame.
   for (std::size_t b = 0; b < moved.size(); ++b)

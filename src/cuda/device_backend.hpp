@@ -325,7 +325,9 @@ class DeviceBackend final : public Backend {
     x_.zero(ca.found, sizeof(int));
     x_.zero(ca.bricks, NB);
     x_.check_links(ca);
-    x_.zero(L_.unchecked, NB);
+    // The frame-end guard leaves the bricks unchecked: the next ChainMail stage still holds every
+    // link the velocity layer moved to its box.
+    if (!frame_end) x_.zero(L_.unchecked, NB);
     x_.download(&host_ctl_->links_outside, ca.found, sizeof(int));
     x_.sync();
     if (!host_ctl_->links_outside) return {};
@@ -345,7 +347,12 @@ class DeviceBackend final : public Backend {
       seeds_.clear();
       solver::find_violations(*m_, L_.grid, check_list_, access, wall_, seeds_, st);
       host_moved_bricks_.assign(NB, 0);
-      restorer_.restore(*m_, L_.grid, seeds_, access, wall_, host_moved_bricks_, st);
+      if (frame_end) {
+        st = {};
+        restorer_.guard_folds(*m_, L_.grid, seeds_, access, wall_, host_moved_bricks_, st);
+      } else {
+        restorer_.restore(*m_, L_.grid, seeds_, access, wall_, host_moved_bricks_, st);
+      }
     } catch (...) {
       // A copy failed halfway (device error, out of memory): leave no half-done host state
       // behind for the next restoration.

@@ -287,15 +287,16 @@ FrameReport Simulation::step(const StepOptions& opt) {
   if (frame_end_restore_) {
     // The layer moves neighbours by different steps (V differs by class, dead zone, clamp,
     // FIXED neighbours) and the boundary clamp flattens: links leave their boxes and cells can
-    // fold. Restored here, the frame ends with every link in its box, hence fold-free.
+    // fold. The fold guard unfolds such cells (links around them back in their boxes) and
+    // leaves every other element where the layer put it, so the swing is the layer's.
     const RestoreStats end = b.restore_frame_end();
-    r.end_restored_links = end.violated_links;
-    r.end_restore_violation = end.max_violation;
+    r.end_folded_cells = end.violated_links;
+    r.end_guard_moved = end.moved;
     if (end.moved > 0) ++positions_version_;
   }
   b.mark(5);
   if (b.active_bricks() > active_chainmail) ++positions_version_;
-  if (host_speeds && r.end_restored_links > 0) sp = speeds_between(model_, previous_end_, frame_end_displacements());
+  if (host_speeds && r.end_guard_moved > 0) sp = speeds_between(model_, previous_end_, frame_end_displacements());
   if (opt.cell_jacobian) {
     if (jacobian_metric_.version != positions_version_) {
       const CellJacobianStats cj = cell_jacobian(model_, frame_end_displacements());

@@ -46,6 +46,60 @@ void find_violations(const Model& m, const BrickGrid& grid, const std::vector<In
   seeds.erase(std::unique(seeds.begin() + static_cast<std::ptrdiff_t>(first), seeds.end()), seeds.end());
 }
 
+Index find_folded_cells(const Model& m, const BrickGrid& grid, const std::vector<Index>& bricks, const RestoreAccess& pos,
+                        std::vector<Index>& corners) {
+  const Index sy = m.dims.x, sz = static_cast<Index>(m.dims.x) * m.dims.y;
+  const std::size_t first = corners.size();
+  std::vector<Index> folded;
+  for (Index bk : bricks) {
+    Int3 lo, hi;
+    grid.range(bk, lo, hi);
+    // Cells whose base (lowest corner) lies up to one cell below the brick have a corner in it.
+    for (int z = std::max(lo.z - 1, 0); z < std::min(hi.z, m.dims.z - 1); ++z)
+      for (int y = std::max(lo.y - 1, 0); y < std::min(hi.y, m.dims.y - 1); ++y)
+        for (int x = std::max(lo.x - 1, 0); x < std::min(hi.x, m.dims.x - 1); ++x) {
+          const Index base = m.index(x, y, z);
+          bool fold = false;
+          for (int k = 0; k < 2 && !fold; ++k)
+            for (int j = 0; j < 2 && !fold; ++j)
+              for (int i = 0; i < 2 && !fold; ++i) {
+                const Index c = base + i + j * sy + k * sz;
+                const Vec3 u = pos.displacement(c);
+                const Vec3 dx = i ? u - pos.displacement(c - 1) : pos.displacement(c + 1) - u;
+                const Vec3 dy = j ? u - pos.displacement(c - sy) : pos.displacement(c + sy) - u;
+                const Vec3 dz = k ? u - pos.displacement(c - sz) : pos.displacement(c + sz) - u;
+                fold = corner_determinant(dx, dy, dz) <= 0.0;
+              }
+          if (fold) folded.push_back(base);
+        }
+  }
+  std::sort(folded.begin(), folded.end());
+  folded.erase(std::unique(folded.begin(), folded.end()), folded.end());
+  for (Index base : folded)
+    for (int k = 0; k < 2; ++k)
+      for (int j = 0; j < 2; ++j)
+        for (int i = 0; i < 2; ++i) corners.push_back(base + i + j * sy + k * sz);
+  std::sort(corners.begin() + static_cast<std::ptrdiff_t>(first), corners.end());
+  corners.erase(std::unique(corners.begin() + static_cast<std::ptrdiff_t>(first), corners.end()), corners.end());
+  return static_cast<Index>(folded.size());
+}
+
+void LinkRestorer::guard_folds(const Model& m, const BrickGrid& grid, const std::vector<Index>& link_seeds,
+                               RestoreAccess& pos, const Wall& wall, std::vector<std::uint8_t>& moved, RestoreStats& st) {
+  if (link_seeds.empty()) return;
+  guard_flags_.assign(static_cast<std::size_t>(grid.count), 0);
+  for (Index e : link_seeds) guard_flags_[static_cast<std::size_t>(grid.brick_of_index(e))] = 1;
+  BrickGrid::to_list(guard_flags_, guard_bricks_);
+  for (int round = 0; round <= kFoldGuardRounds; ++round) {
+    folded_corners_.clear();
+    const Index folded = find_folded_cells(m, grid, guard_bricks_, pos, folded_corners_);
+    if (round == 0) st.violated_links = folded;
+    if (folded == 0) return;
+    // The last round restores every link found outside its box: then none can fold a cell.
+    restore(m, grid, round < kFoldGuardRounds ? folded_corners_ : link_seeds, pos, wall, moved, st);
+  }
+}
+
 void LinkRestorer::init(const Model& m) {
   const std::size_t n = static_cast<std::size_t>(m.size());
   queued_.assign(n, 0);

@@ -27,9 +27,27 @@ struct RestoreAccess {
 void find_violations(const Model& m, const BrickGrid& grid, const std::vector<Index>& bricks, const RestoreAccess& pos,
                      const Wall& wall, std::vector<Index>& seeds, RestoreStats& st);
 
+/// Cells folded (a corner determinant <= 0, as cell_jacobian tests) among the cells with a corner
+/// in `bricks`; appends the 8 corners of each to `corners` (ascending, unique) and returns how
+/// many cells folded.
+Index find_folded_cells(const Model& m, const BrickGrid& grid, const std::vector<Index>& bricks, const RestoreAccess& pos,
+                        std::vector<Index>& corners);
+
+/// Rounds of the fold guard that restore only the folded cells' corners before it restores every
+/// link of the region (LinkRestorer::guard_folds).
+inline constexpr int kFoldGuardRounds = 3;
+
 class LinkRestorer {
  public:
   void init(const Model& m);
+  /// The frame-end fold guard (docs/solver.md, "No fold"). `link_seeds`: the ends of the links
+  /// outside their boxes (find_violations); a folded cell has such a link, so the cells with a
+  /// corner in their bricks are checked. Where cells are folded, the links around their corners
+  /// are restored to their boxes, up to kFoldGuardRounds times; cells still folded then have every
+  /// link of `link_seeds` restored, and links in their boxes cannot fold a cell (the shear cap).
+  /// Nothing moves where no cell is folded. st.violated_links counts the cells found folded.
+  void guard_folds(const Model& m, const BrickGrid& grid, const std::vector<Index>& link_seeds, RestoreAccess& pos,
+                   const Wall& wall, std::vector<std::uint8_t>& moved, RestoreStats& st);
   /// The cap on each pass, in visits per lattice element (kRestoreVisitsPerElement; tests lower it).
   void set_visits_per_element(int visits) { visits_per_element_ = visits; }
   /// Restores consistency around `seeds` (ascending, unique linear indices): every link and
@@ -52,7 +70,8 @@ class LinkRestorer {
     }
     return val_[k][e];
   }
-  std::vector<Index> changed_, queue_, pass_seeds_, moved_list_;
+  std::vector<Index> changed_, queue_, pass_seeds_, moved_list_, guard_bricks_, folded_corners_;
+  std::vector<std::uint8_t> guard_flags_;
   std::vector<std::uint8_t> queued_, moved_flag_;
   std::vector<std::uint8_t> mark_;  ///< changed by a pass on the current axis (listed in changed_)
   std::vector<std::uint32_t> stamp_;

@@ -24,7 +24,7 @@ namespace {
 struct FoldFigures {
   int folded_frames = 0;     ///< frames with a folded cell at frame end
   float min_det = 1;         ///< smallest cell corner determinant over every frame end
-  Index end_restored = 0;    ///< links the velocity layer left outside their boxes (all frames)
+  Index end_restored = 0;    ///< cells the velocity layer folded and the guard unfolded (all frames)
   float max_link = 0;        ///< largest link violation after the ChainMail stage
 };
 
@@ -40,7 +40,7 @@ FoldFigures play(const Model& m, const Params& p, const Scenario& sc, int idle) 
     const FrameReport r = player.done() ? sim.step(so) : player.step(so);
     if (r.folded_cells > 0) ++f.folded_frames;
     f.min_det = std::min(f.min_det, r.min_cell_jacobian);
-    f.end_restored += r.end_restored_links;
+    f.end_restored += r.end_folded_cells;
     f.max_link = std::max(f.max_link, r.max_link_violation);
   }
   return f;
@@ -105,7 +105,7 @@ int expect_fold_free(const Model& m, const Params& base, const Scenario& sc, int
     EXPECT_GT(now.min_det, 0.0f) << label;
     EXPECT_LE(now.max_link, 1e-5f) << label;
     const FoldFigures before = play_without_frame_end_restore(m, p, sc, idle);
-    std::printf("  %-58s min det %.4f (%lld links restored at frame end); without: %d folded frames, min det %.4f\n",
+    std::printf("  %-58s min det %.4f (%lld cells unfolded at frame end); without: %d folded frames, min det %.4f\n",
                 label.c_str(), now.min_det, static_cast<long long>(now.end_restored), before.folded_frames,
                 before.min_det);
     if (before.folded_frames > 0) ++old_folds;

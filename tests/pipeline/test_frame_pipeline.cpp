@@ -143,7 +143,7 @@ TEST(FramePipeline, PaperProtocolFramesOnPhantom) {
   Simulation sim(m, p);
   ScenarioPlayer player(sc, sim);
   std::vector<Vec3> prev = sim.state().disp;
-  int frame = 0, moving_after_release = 0, end_restored_frames = 0;
+  int frame = 0, moving_after_release = 0;
   while (!player.done()) {
     const FrameReport r = player.step();
     const State& s = sim.state();
@@ -178,7 +178,6 @@ TEST(FramePipeline, PaperProtocolFramesOnPhantom) {
       EXPECT_EQ(r.max_speed[t], mx[t]) << "class " << t << ", frame " << frame;
     }
     EXPECT_EQ(r.moved_elements, moved) << "frame " << frame;
-    if (r.end_restored_links > 0) ++end_restored_frames;
     if (frame >= release && r.mean_speed[static_cast<int>(Tissue::SkinFat)] > 0) ++moving_after_release;
     // Stage times.
     EXPECT_GE(r.chainmail_ms, 0.0);
@@ -190,9 +189,6 @@ TEST(FramePipeline, PaperProtocolFramesOnPhantom) {
   }
   // The residual motion after release is what the idle stage must preserve.
   EXPECT_GE(moving_after_release, 10);
-  // Frames whose end the link restoration changed are among them (their speeds come from the
-  // host, the others' from the velocity layer).
-  EXPECT_GT(end_restored_frames, 0);
 }
 
 // Same input, same result (SPEC §8.6, CPU): the full pipeline under condition C on a small

@@ -9,13 +9,15 @@
 // near the far end (grab at x = 996). The shift between them, 976, is a multiple of the brick
 // size and even (the same red-black colours), so the only difference between the two runs is
 // where the window sits. Every frame, the displacement fields relative to the grab must agree
-// within 1e-6 and every link must be within 1e-5 of its box.
+// within 1e-6 and every link must be within 1e-5 of its box. On a CUDA device the same runs
+// must equal the CPU's bit for bit (skipped without a device).
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 
+#include "hpcm/backend_factory.hpp"
 #include "hpcm/simulation.hpp"
 #include "hpcm/state.hpp"
 #include "solver/solver_test_util.hpp"
@@ -41,8 +43,8 @@ struct PullRun {
   float worst_link = 0;
 };
 
-PullRun pull_at(const Model& m, int grab_x) {
-  Simulation sim(m, Params{});
+PullRun pull_at(const Model& m, int grab_x, BackendKind backend = BackendKind::Cpu) {
+  Simulation sim(m, Params{}, backend);
   sim.grab(m.index(grab_x, kDims.y / 2, kDims.z / 2));
   StepOptions opt;
   opt.link_violation = true;
@@ -62,8 +64,12 @@ PullRun pull_at(const Model& m, int grab_x) {
 
 }  // namespace
 
+Model fenced_lattice() {
+  return build_model(test::make_volume(kDims, [](int x, int, int) { return fence(x) ? kBoneHu : kMuscleHu; }), Params{});
+}
+
 TEST(PositionIndependence, SamePullNearAndFarFromTheOriginGivesTheSameMotion) {
-  const Model m = build_model(test::make_volume(kDims, [](int x, int, int) { return fence(x) ? kBoneHu : kMuscleHu; }), Params{});
+  const Model m = fenced_lattice();
   const PullRun near = pull_at(m, kNearGrab), far = pull_at(m, kNearGrab + kShift);
   ASSERT_EQ(near.frames.size(), far.frames.size());
   float worst = 0, largest = 0;
@@ -85,4 +91,22 @@ TEST(PositionIndependence, SamePullNearAndFarFromTheOriginGivesTheSameMotion) {
   EXPECT_LE(far.worst_link, 1e-5f);
   std::printf("largest displacement %.3f; largest near/far difference %.3g; largest link violation near %.3g, far %.3g\n",
               largest, worst, near.worst_link, far.worst_link);
+}
+
+TEST(PositionIndependence, CudaEqualsTheCpuNearAndFar) {
+  std::string why;
+  if (!cuda_available(&why)) GTEST_SKIP() << "no CUDA device: " << why;
+  const Model m = fenced_lattice();
+  for (int grab_x : {kNearGrab, kNearGrab + kShift}) {
+    const PullRun cpu = pull_at(m, grab_x), gpu = pull_at(m, grab_x, BackendKind::Cuda);
+    ASSERT_EQ(cpu.frames.size(), gpu.frames.size());
+    float worst = 0;
+    for (std::size_t f = 0; f < cpu.frames.size(); ++f)
+      for (std::size_t i = 0; i < cpu.frames[f].size(); ++i)
+        for (int k = 0; k < 3; ++k) worst = std::max(worst, std::fabs(cpu.frames[f][i][k] - gpu.frames[f][i][k]));
+    EXPECT_EQ(worst, 0.0f) << "grab at x = " << grab_x;
+    EXPECT_LE(gpu.worst_link, 1e-5f) << "grab at x = " << grab_x;
+    std::printf("[parity] 1024x48x32, grab at x = %d: largest CPU/CUDA difference %.3g, largest link violation %.3g\n",
+                grab_x, worst, gpu.worst_link);
+  }
 }
