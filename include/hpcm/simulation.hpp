@@ -53,9 +53,9 @@ void check_grab_radius(float radius, const std::string& what);
 void check_grab_radius_mm(const Model& m, float radius_mm, const std::string& what);
 
 struct StepOptions {
-  bool speeds = true;               ///< reduce per-tissue speeds (costs a little: the velocity layer's reduction, and a
-                                    ///< download of the frame-end positions per frame with motion, for the frames
-                                    ///< whose end the link restoration changes)
+  bool speeds = true;               ///< reduce per-tissue speeds (costs the velocity layer's reduction and a
+                                    ///< download of every frame-end displacement in each frame with motion: a
+                                    ///< frame the fold guard changes takes its speeds from the previous frame's end)
   bool link_violation = false;      ///< measure max link violation over all links (O(N))
   bool cell_jacobian = false;       ///< measure the smallest cell Jacobian determinant at frame end (O(N))
 };
@@ -146,7 +146,7 @@ class Simulation {
   std::uint64_t positions_version_ = 0;
   Metric link_metric_, jacobian_metric_;
   /// Frame-end displacements on the host (of positions_version_ end_pos_version_): the previous
-  /// frame's end, from which the speeds of a frame the frame-end restoration changed are taken.
+  /// frame's end, from which the speeds of a frame the fold guard changed are taken.
   std::vector<Vec3> end_pos_, previous_end_;
   std::uint64_t end_pos_version_ = ~std::uint64_t{0};
   /// Downloads the current displacements into end_pos_ unless they are there already.

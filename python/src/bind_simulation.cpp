@@ -508,7 +508,7 @@ Several threads may call one Simulation: the calls run one at a time.)")
             s.backend().download(snap->state);
             snap->dims = s.model().dims;
             return snap;
-          }), "A copy of the whole state (positions, velocities, times, flags) as a State.")
+          }), "A copy of the whole state (displacements from rest, velocities, times, flags) as a State.")
       .def("velocities", in_turn(+[](Simulation& s) {
             State st;
             s.backend().download(st);

@@ -292,6 +292,7 @@ FrameReport Simulation::step(const StepOptions& opt) {
     const RestoreStats end = b.restore_frame_end();
     r.end_folded_cells = end.violated_links;
     r.end_guard_moved = end.moved;
+    r.restore_converged = r.restore_converged && !end.capped;
     if (end.moved > 0) ++positions_version_;
   }
   b.mark(5);

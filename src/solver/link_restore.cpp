@@ -90,14 +90,19 @@ void LinkRestorer::guard_folds(const Model& m, const BrickGrid& grid, const std:
   guard_flags_.assign(static_cast<std::size_t>(grid.count), 0);
   for (Index e : link_seeds) guard_flags_[static_cast<std::size_t>(grid.brick_of_index(e))] = 1;
   BrickGrid::to_list(guard_flags_, guard_bricks_);
+  guard_moved_.clear();
+  record_moved_ = &guard_moved_;  // an element moved in two rounds counts once
   for (int round = 0; round <= kFoldGuardRounds; ++round) {
     folded_corners_.clear();
     const Index folded = find_folded_cells(m, grid, guard_bricks_, pos, folded_corners_);
     if (round == 0) st.violated_links = folded;
-    if (folded == 0) return;
+    if (folded == 0) break;
     // The last round restores every link found outside its box: then none can fold a cell.
     restore(m, grid, round < kFoldGuardRounds ? folded_corners_ : link_seeds, pos, wall, moved, st);
   }
+  record_moved_ = nullptr;
+  std::sort(guard_moved_.begin(), guard_moved_.end());
+  st.moved += static_cast<Index>(std::unique(guard_moved_.begin(), guard_moved_.end()) - guard_moved_.begin());
 }
 
 void LinkRestorer::init(const Model& m) {
@@ -200,7 +205,8 @@ void LinkRestorer::restore(const Model& m, const BrickGrid& grid, const std::vec
       }
     }
   }
-  st.moved += static_cast<Index>(moved_list_.size());
+  if (record_moved_) record_moved_->insert(record_moved_->end(), moved_list_.begin(), moved_list_.end());
+  else st.moved += static_cast<Index>(moved_list_.size());
   st.capped = st.capped || !ok;
   for (Index e : moved_list_) moved_flag_[e] = 0;
   moved_list_.clear();

@@ -72,6 +72,8 @@ class LinkRestorer {
   }
   std::vector<Index> changed_, queue_, pass_seeds_, moved_list_, guard_bricks_, folded_corners_;
   std::vector<std::uint8_t> guard_flags_;
+  std::vector<Index> guard_moved_;             ///< elements the fold guard moved, over its rounds
+  std::vector<Index>* record_moved_ = nullptr;  ///< set: restore() lists its moved elements here instead of counting
   std::vector<std::uint8_t> queued_, moved_flag_;
   std::vector<std::uint8_t> mark_;  ///< changed by a pass on the current axis (listed in changed_)
   std::vector<std::uint32_t> stamp_;

@@ -197,10 +197,9 @@ void ToolLimitSearch::extend(Direction& s, double cap) const {
   const Model& m = m_;
   const std::vector<std::uint8_t>& anchored = anchored_;
   const std::vector<std::uint8_t>& grabbed = is_grabbed_;
-  const float margin = margin_;
+  const Wall walls = make_wall(m.dims, margin_);
   const int b = s.axis;
   const bool forward = !s.upper;
-  const int n_b = b == 0 ? m.dims.x : (b == 1 ? m.dims.y : m.dims.z);
   while (!s.heap.empty()) {
     // Named copies, not a structured binding: the lambda below captures d (clang 14 rejects that).
     const RadixHeap::Entry top = s.heap.pop();
@@ -214,9 +213,10 @@ void ToolLimitSearch::extend(Direction& s, double cap) const {
       return;
     }
     const Int3 c = m.coords(e);
-    const double rest = c[b];
-    // The wall: forward (lower bound) d_e >= -(rest + margin); reversed d_e <= N - 1 + margin - rest.
-    const double wall = forward ? rest + margin : (n_b - 1 + margin) - rest;
+    // The wall: forward (lower bound) d_e >= wall_lo; reversed d_e <= wall_hi: the same floats
+    // the backends clamp to (solver::make_wall, wall_lo_of / wall_hi_of), not the exact value, so
+    // a grab held at the wall is inside it on every backend whatever the margin.
+    const double wall = forward ? -static_cast<double>(wall_lo_of(walls, b, c[b])) : static_cast<double>(wall_hi_of(walls, b, c[b]));
     if (anchored[static_cast<std::size_t>(e)]) {
       s.best = std::min(s.best, d);
       continue;  // an anchor ends the chain
