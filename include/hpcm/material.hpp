@@ -37,6 +37,28 @@ HPCM_HD inline LinkLimits limits_from_tau(float tau, float w) {
   return {-(0.8f * tau), tau, shear_limit(tau), w};
 }
 
+/// Smallest axial spacing of a link's fold box (less where the link's own box allows less).
+inline constexpr float kFoldMinSpacing = 0.5f;
+/// Column dominance every fold box keeps: axial spacing - 2 * shear >= this (as the shear cap).
+inline constexpr float kFoldMargin = 0.02f;
+
+/// The fold box of a link: a box around its Gibson box (never smaller) inside which the link
+/// cannot take part in a fold. A cell's corner Jacobian has the three edges leaving the corner as
+/// columns; where each edge's axial spacing is at least s and its two shear components at most
+/// (s - kFoldMargin) / 2, every column is diagonally dominant with a positive diagonal, so the
+/// determinant is positive. Stretching never folds: no upper limit. The least spacing s is
+/// kFoldMinSpacing, but never above the link's own (1 - 0.8 tau) and never below what its own
+/// shear limit needs (2 shear + kFoldMargin, which the shear cap keeps within its own spacing).
+/// A cell can fold only where one of its edges is outside its fold box: the fold guard tests
+/// the cells around those edges only (docs/solver.md, "No fold").
+HPCM_HD inline LinkLimits fold_limits(const LinkLimits& L) {
+  const float own_spacing = 1.0f + L.min_stretch, shear_needs = 2.0f * L.shear + kFoldMargin;
+  const float wide = kFoldMinSpacing > shear_needs ? kFoldMinSpacing : shear_needs;
+  const float spacing = wide < own_spacing ? wide : own_spacing;
+  const float dominant_shear = 0.5f * (spacing - kFoldMargin);
+  return {spacing - 1.0f, __builtin_huge_valf(), dominant_shear > L.shear ? dominant_shear : L.shear, L.w};
+}
+
 /// Range of the link time penalty w. The propagation's time buckets are w_min wide; arrival
 /// times reach (path length) * w_max, so w_max / w_min bounds the bucket numbers (they must fit
 /// 64 bits at 2^31 elements: 100 / 1e-6 * 2^31 < 2^64).

@@ -46,55 +46,79 @@ void find_violations(const Model& m, const BrickGrid& grid, const std::vector<In
   seeds.erase(std::unique(seeds.begin() + static_cast<std::ptrdiff_t>(first), seeds.end()), seeds.end());
 }
 
-Index find_folded_cells(const Model& m, const BrickGrid& grid, const std::vector<Index>& bricks, const RestoreAccess& pos,
+void find_fold_suspects(const Model& m, const std::vector<Index>& elements, const RestoreAccess& pos,
+                        std::vector<Index>& suspects) {
+  const std::size_t first = suspects.size();
+  for (Index e : elements) {
+    const Int3 c = m.coords(e);
+    const Vec3 ue = pos.displacement(e);
+    for_each_face_neighbour(m.dims.x, m.dims.y, m.dims.z, c.x, c.y, c.z, e,
+                            [&](Index n, int a, int, Index lo, Index hi) {
+                              const Vec3 un = pos.displacement(n);
+                              const Vec3& u_lo = lo == e ? ue : un;
+                              const Vec3& u_hi = hi == e ? ue : un;
+                              if (link_violation(u_lo, u_hi, fold_limits(m.link(a, lo)), a) > 0.0f) {
+                                suspects.push_back(e);
+                                suspects.push_back(n);
+                              }
+                            });
+  }
+  std::sort(suspects.begin() + static_cast<std::ptrdiff_t>(first), suspects.end());
+  suspects.erase(std::unique(suspects.begin() + static_cast<std::ptrdiff_t>(first), suspects.end()), suspects.end());
+}
+
+Index find_folded_cells(const Model& m, const std::vector<Index>& elements, const RestoreAccess& pos,
                         std::vector<Index>& corners) {
   const Index sy = m.dims.x, sz = static_cast<Index>(m.dims.x) * m.dims.y;
   const std::size_t first = corners.size();
-  std::vector<Index> folded;
-  for (Index bk : bricks) {
-    Int3 lo, hi;
-    grid.range(bk, lo, hi);
-    // Cells whose base (lowest corner) lies up to one cell below the brick have a corner in it.
-    for (int z = std::max(lo.z - 1, 0); z < std::min(hi.z, m.dims.z - 1); ++z)
-      for (int y = std::max(lo.y - 1, 0); y < std::min(hi.y, m.dims.y - 1); ++y)
-        for (int x = std::max(lo.x - 1, 0); x < std::min(hi.x, m.dims.x - 1); ++x) {
-          const Index base = m.index(x, y, z);
-          bool fold = false;
-          for (int k = 0; k < 2 && !fold; ++k)
-            for (int j = 0; j < 2 && !fold; ++j)
-              for (int i = 0; i < 2 && !fold; ++i) {
-                const Index c = base + i + j * sy + k * sz;
-                const Vec3 u = pos.displacement(c);
-                const Vec3 dx = i ? u - pos.displacement(c - 1) : pos.displacement(c + 1) - u;
-                const Vec3 dy = j ? u - pos.displacement(c - sy) : pos.displacement(c + sy) - u;
-                const Vec3 dz = k ? u - pos.displacement(c - sz) : pos.displacement(c + sz) - u;
-                fold = corner_determinant(dx, dy, dz) <= 0.0;
-              }
-          if (fold) folded.push_back(base);
-        }
+  // The cells with a corner among `elements`: bases up to one cell below each on every axis.
+  std::vector<Index> bases;
+  for (Index e : elements) {
+    const Int3 c = m.coords(e);
+    for (int z = std::max(c.z - 1, 0); z <= std::min(c.z, m.dims.z - 2); ++z)
+      for (int y = std::max(c.y - 1, 0); y <= std::min(c.y, m.dims.y - 2); ++y)
+        for (int x = std::max(c.x - 1, 0); x <= std::min(c.x, m.dims.x - 2); ++x) bases.push_back(m.index(x, y, z));
   }
-  std::sort(folded.begin(), folded.end());
-  folded.erase(std::unique(folded.begin(), folded.end()), folded.end());
-  for (Index base : folded)
+  std::sort(bases.begin(), bases.end());
+  bases.erase(std::unique(bases.begin(), bases.end()), bases.end());
+  Index folded = 0;
+  for (Index base : bases) {
+    bool fold = false;
+    for (int k = 0; k < 2 && !fold; ++k)
+      for (int j = 0; j < 2 && !fold; ++j)
+        for (int i = 0; i < 2 && !fold; ++i) {
+          const Index c = base + i + j * sy + k * sz;
+          const Vec3 u = pos.displacement(c);
+          const Vec3 dx = i ? u - pos.displacement(c - 1) : pos.displacement(c + 1) - u;
+          const Vec3 dy = j ? u - pos.displacement(c - sy) : pos.displacement(c + sy) - u;
+          const Vec3 dz = k ? u - pos.displacement(c - sz) : pos.displacement(c + sz) - u;
+          fold = corner_determinant(dx, dy, dz) <= 0.0;
+        }
+    if (!fold) continue;
+    ++folded;
     for (int k = 0; k < 2; ++k)
       for (int j = 0; j < 2; ++j)
         for (int i = 0; i < 2; ++i) corners.push_back(base + i + j * sy + k * sz);
+  }
   std::sort(corners.begin() + static_cast<std::ptrdiff_t>(first), corners.end());
   corners.erase(std::unique(corners.begin() + static_cast<std::ptrdiff_t>(first), corners.end()), corners.end());
-  return static_cast<Index>(folded.size());
+  return folded;
 }
 
 void LinkRestorer::guard_folds(const Model& m, const BrickGrid& grid, const std::vector<Index>& link_seeds,
                                RestoreAccess& pos, const Wall& wall, std::vector<std::uint8_t>& moved, RestoreStats& st) {
   if (link_seeds.empty()) return;
-  guard_flags_.assign(static_cast<std::size_t>(grid.count), 0);
-  for (Index e : link_seeds) guard_flags_[static_cast<std::size_t>(grid.brick_of_index(e))] = 1;
-  BrickGrid::to_list(guard_flags_, guard_bricks_);
   guard_moved_.clear();
   record_moved_ = &guard_moved_;  // an element moved in two rounds counts once
   for (int round = 0; round <= kFoldGuardRounds; ++round) {
+    // Links outside their fold boxes can only be among the links the check found outside their
+    // boxes, or at the elements the guard has moved since.
+    guard_elements_ = link_seeds;
+    guard_elements_.insert(guard_elements_.end(), guard_moved_.begin(), guard_moved_.end());
+    suspects_.clear();
+    find_fold_suspects(m, guard_elements_, pos, suspects_);
     folded_corners_.clear();
-    const Index folded = find_folded_cells(m, grid, guard_bricks_, pos, folded_corners_);
+    const Index folded = suspects_.empty() ? 0 : find_folded_cells(m, suspects_, pos, folded_corners_);
     if (round == 0) st.violated_links = folded;
     if (folded == 0) break;
     // The last round restores every link found outside its box: then none can fold a cell.

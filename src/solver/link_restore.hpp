@@ -27,10 +27,15 @@ struct RestoreAccess {
 void find_violations(const Model& m, const BrickGrid& grid, const std::vector<Index>& bricks, const RestoreAccess& pos,
                      const Wall& wall, std::vector<Index>& seeds, RestoreStats& st);
 
+/// The ends of the links of `elements` that lie outside their fold boxes (fold_limits): the
+/// only corners a folded cell can have. Appended to `suspects` (ascending, unique).
+void find_fold_suspects(const Model& m, const std::vector<Index>& elements, const RestoreAccess& pos,
+                        std::vector<Index>& suspects);
+
 /// Cells folded (a corner determinant <= 0, as cell_jacobian tests) among the cells with a corner
-/// in `bricks`; appends the 8 corners of each to `corners` (ascending, unique) and returns how
+/// in `elements`; appends the 8 corners of each to `corners` (ascending, unique) and returns how
 /// many cells folded.
-Index find_folded_cells(const Model& m, const BrickGrid& grid, const std::vector<Index>& bricks, const RestoreAccess& pos,
+Index find_folded_cells(const Model& m, const std::vector<Index>& elements, const RestoreAccess& pos,
                         std::vector<Index>& corners);
 
 /// Rounds of the fold guard that restore only the folded cells' corners before it restores every
@@ -41,8 +46,9 @@ class LinkRestorer {
  public:
   void init(const Model& m);
   /// The frame-end fold guard (docs/solver.md, "No fold"). `link_seeds`: the ends of the links
-  /// outside their boxes (find_violations); a folded cell has such a link, so the cells with a
-  /// corner in their bricks are checked. Where cells are folded, the links around their corners
+  /// outside their boxes (find_violations); a folded cell has a link outside its fold box, which
+  /// is outside its box too, so only the cells around those links are tested. Where cells are
+  /// folded, the links around their corners
   /// are restored to their boxes, up to kFoldGuardRounds times; cells still folded then have every
   /// link of `link_seeds` restored, and links in their boxes cannot fold a cell (the shear cap).
   /// Nothing moves where no cell is folded. st.violated_links counts the cells found folded.
@@ -70,8 +76,7 @@ class LinkRestorer {
     }
     return val_[k][e];
   }
-  std::vector<Index> changed_, queue_, pass_seeds_, moved_list_, guard_bricks_, folded_corners_;
-  std::vector<std::uint8_t> guard_flags_;
+  std::vector<Index> changed_, queue_, pass_seeds_, moved_list_, guard_elements_, suspects_, folded_corners_;
   std::vector<Index> guard_moved_;             ///< elements the fold guard moved, over its rounds
   std::vector<Index>* record_moved_ = nullptr;  ///< set: restore() lists its moved elements here instead of counting
   std::vector<std::uint8_t> queued_, moved_flag_;
