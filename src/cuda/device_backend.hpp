@@ -322,6 +322,7 @@ class DeviceBackend final : public Backend {
     ca.wall = wall_;
     ca.found = &ctl_->links_outside;
     ca.bricks = check_bricks_;
+    ca.fold = frame_end;  // the fold guard downloads only bricks where a link could fold a cell
     x_.zero(ca.found, sizeof(int));
     x_.zero(ca.bricks, NB);
     x_.check_links(ca);

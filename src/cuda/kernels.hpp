@@ -637,6 +637,9 @@ struct CheckArgs {
   solver::Wall wall;
   int* found = nullptr;             ///< set to 1 when some element or link fails the test
   std::uint8_t* bricks = nullptr;   ///< per brick: set to 1 when one of its elements fails it
+  /// The frame-end fold guard's test instead: a + link outside its fold box (fold_limits), where
+  /// alone a cell can fold; the wall is not tested.
+  bool fold = false;
 };
 
 template <class B>
@@ -656,6 +659,12 @@ HPCM_HD void check_links_block(const CheckArgs& a, long long b, B& blk) {
       if (c[0] >= hi[0] || c[1] >= hi[1] || c[2] >= hi[2]) continue;
       const long long e = L.index(c[0], c[1], c[2]);
       const Vec3 pe = L.disp[e];
+      if (a.fold) {
+        for (int ax = 0; ax < 3; ++ax)
+          if (c[ax] + 1 < d[ax] && link_violation(pe, L.disp[e + stride[ax]], fold_limits(L.link_of(ax, e, e + stride[ax])), ax) > solver::kRestoreTolerance)
+            found = true;
+        continue;
+      }
       for (int ax = 0; ax < 3; ++ax) {
         const float below = solver::wall_lo_of(a.wall, ax, c[ax]) - pe[ax], above = pe[ax] - solver::wall_hi_of(a.wall, ax, c[ax]);
         if ((below < above ? above : below) > solver::kRestoreTolerance) found = true;
