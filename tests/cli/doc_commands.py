@@ -144,11 +144,13 @@ def small(argv):
 
 
 def in_source_tree(argv, scratch, source):
-    """Relative paths that name a file of the source tree (docs/..., examples/...) as that file."""
+    """Relative paths that name a file of the source tree (docs/..., examples/...) as that file.
+    Files only: a folder such as out/ stays in the scratch folder, so no documented command
+    writes into (or is refused by) the source tree."""
     out = []
     for a in argv:
         if source and "/" in a and not a.startswith(("/", "-")) and not os.path.exists(os.path.join(scratch, a)) \
-                and os.path.exists(os.path.join(source, a)):
+                and os.path.isfile(os.path.join(source, a)):
             a = os.path.join(source, a)
         out.append(a)
     return out
