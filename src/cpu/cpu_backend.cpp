@@ -152,14 +152,13 @@ RestoreStats CpuBackend::restore(bool frame_end) {
       const Int3 c = m_->coords(e);
       const int cc[3] = {c.x, c.y, c.z}, n[3] = {d.x, d.y, d.z};
       for (int a = 0; a < 3; ++a)
-        if (cc[a] + 1 < n[a] &&
-            link_violation(access.displacement(e), access.displacement(e + stride[a]), fold_limits(m_->link(a, e)), a) > solver::kRestoreTolerance)
+        if (cc[a] + 1 < n[a] && solver::outside_fold_box(access.displacement(e), access.displacement(e + stride[a]), m_->link(a, e), a))
           fold_bricks_[static_cast<std::size_t>(grid_.brick_of_index(e))] = 1;
     }
     solver::BrickGrid::to_list(fold_bricks_, check_list_);
-    rs = {};
     seeds_.clear();
-    solver::find_violations(*m_, grid_, check_list_, access, wall_, seeds_, rs);
+    RestoreStats links;  // the guard reports the cells it found folded, not these links
+    solver::find_violations(*m_, grid_, check_list_, access, wall_, seeds_, links);
     rs = {};
     restorer_.guard_folds(*m_, grid_, seeds_, access, wall_, moved, rs);
   } else {

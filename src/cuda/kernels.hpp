@@ -661,7 +661,7 @@ HPCM_HD void check_links_block(const CheckArgs& a, long long b, B& blk) {
       const Vec3 pe = L.disp[e];
       if (a.fold) {
         for (int ax = 0; ax < 3; ++ax)
-          if (c[ax] + 1 < d[ax] && link_violation(pe, L.disp[e + stride[ax]], fold_limits(L.link_of(ax, e, e + stride[ax])), ax) > solver::kRestoreTolerance)
+          if (c[ax] + 1 < d[ax] && solver::outside_fold_box(pe, L.disp[e + stride[ax]], L.link_of(ax, e, e + stride[ax]), ax))
             found = true;
         continue;
       }

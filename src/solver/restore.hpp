@@ -40,6 +40,13 @@ inline constexpr float kRestoreTolerance = 4e-6f;
 /// stops there and says so (RestoreStats::capped) rather than running on.
 inline constexpr int kRestoreVisitsPerElement = 64;
 
+/// Whether the link (lo end at p_lo, hi end p_hi = lo + unit_a at rest) lies outside its fold box
+/// (fold_limits) by more than kRestoreTolerance: where alone a cell can fold. The frame-end fold
+/// guard's brick test on both backends.
+HPCM_HD inline bool outside_fold_box(const Vec3& p_lo, const Vec3& p_hi, const LinkLimits& L, int a) {
+  return link_violation(p_lo, p_hi, fold_limits(L), a) > kRestoreTolerance;
+}
+
 /// How far displacement x of element e on axis b lies outside the interval its link to neighbour
 /// n (displacement cn on that axis) allows, by the same float arithmetic as link_violation (0 inside).
 HPCM_HD inline float link_excess(float x, float cn, const LinkLimits& L, int a, int side, int b) {

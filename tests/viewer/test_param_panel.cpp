@@ -6,6 +6,7 @@
 #include <set>
 
 #include "param_panel.hpp"
+#include "param_test_util.hpp"
 
 using namespace hpcm;
 using hpcm::viewer::panel_params;
@@ -15,21 +16,8 @@ namespace {
 /// The message of check_param_ranges with every number of the entry set to v, or "".
 std::string error_at(const ParamSpec& s, double v) {
   Params p;
-  switch (s.type) {
-    case ParamType::Real: s.real(p) = static_cast<float>(v); break;
-    case ParamType::Integer: s.integer(p) = static_cast<int>(v); break;
-    case ParamType::PerClass: s.per_class(p).fill(static_cast<float>(v)); break;
-    case ParamType::PointField:
-      for (auto& pt : p.material.points) pt.*s.point_field = static_cast<float>(v);
-      break;
-    default: return "";
-  }
-  try {
-    check_param_ranges(p);
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
+  test::set_all(s, p, v);
+  return test::range_error(p);
 }
 
 }  // namespace
