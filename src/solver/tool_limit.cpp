@@ -130,8 +130,8 @@ class SparseDistances {
 /// nearest on displacements (solver/restore.hpp), so a chain stretched to its exact slack keeps
 /// its links within half a float step of their displacements: no slack is reserved for it.
 float side_limit(double bound) {
-  const auto below = [](double v) { return std::nextafter(static_cast<float>(std::min(v, 1e30)), -INFINITY); };
-  return std::max(below(bound), std::min(below(bound), 0.0f));
+  const float below = std::nextafter(static_cast<float>(std::min(bound, 1e30)), -INFINITY);
+  return bound >= 0.0 ? std::max(below, 0.0f) : below;
 }
 
 void check_inputs(const Model& m, const std::vector<Index>& grabbed, const std::vector<Vec3>& origin,

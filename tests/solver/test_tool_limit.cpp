@@ -105,6 +105,28 @@ INSTANTIATE_TEST_SUITE_P(Modes, ToolLimit,
 
 }  // namespace
 
+// A grab on the lattice's border with boundary margin 0: the wall allows no outward offset at
+// all, but offset 0 (the grab held where it is) is allowed and is not reported as limited;
+// an outward pull is limited to exactly 0, an inward one is free.
+TEST(ToolLimit, GrabOnTheWallWithMarginZeroIsNotLimitedAtRest) {
+  Params p;
+  p.dynamics.margin = 0.0f;
+  p.solver.anchors = AnchorMode::None;
+  const Model m = build_model(test::make_volume({12, 12, 12}, [](int, int, int) { return -100.0f; }), p);
+  Simulation sim(m, p);
+  sim.grab(m.index(0, 6, 6), 0.5f);
+  ASSERT_EQ(sim.grabbed().size(), 1u);
+  EXPECT_EQ(sim.tool_limit_lo().x, 0.0f);
+  EXPECT_FALSE(sim.tool_limited());
+  EXPECT_FALSE(sim.step({}).tool_limited);
+  sim.move_tool(Vec3{-0.5f, 0.0f, 0.0f});
+  EXPECT_TRUE(sim.tool_limited());
+  EXPECT_EQ(sim.tool_offset().x, 0.0f);
+  sim.move_tool(Vec3{0.25f, 0.0f, 0.0f});
+  EXPECT_FALSE(sim.tool_limited());
+  EXPECT_EQ(sim.tool_offset().x, 0.25f);
+}
+
 // The six searches of the tool limit (three axes, two directions) run on the available threads:
 // the limits must not depend on how many there are. A grab inside the phantom's soft tissue,
 // so every search has work to do.
