@@ -54,15 +54,17 @@ Rgba blend_overlay(Rgba base, float value, float max_value, float opacity) {
 }
 
 namespace {
-float overlay_value(const Model& m, Index i, const std::vector<Vec3>& pos, const std::vector<Vec3>& prev, Overlay o) {
+// From displacements, not positions: far from the lattice origin a position's float step
+// (6e-5 at x = 512) would hide the slow motion the speed overlay is there to show.
+float overlay_value(Index i, const std::vector<Vec3>& disp, const std::vector<Vec3>& prev, Overlay o) {
   const auto u = static_cast<std::size_t>(i);
-  if (o == Overlay::Speed) return prev.size() == pos.size() ? norm(pos[u] - prev[u]) : 0.0f;
-  if (o == Overlay::Displacement) return norm(pos[u] - m.rest(i));
+  if (o == Overlay::Speed) return prev.size() == disp.size() ? norm(disp[u] - prev[u]) : 0.0f;
+  if (o == Overlay::Displacement) return norm(disp[u]);
   return 0.0f;
 }
 }  // namespace
 
-void slice_colours(const Model& m, Plane p, int k, const std::vector<Vec3>& pos, const std::vector<Vec3>& prev,
+void slice_colours(const Model& m, Plane p, int k, const std::vector<Vec3>& disp, const std::vector<Vec3>& prev,
                    const ColourSettings& s, std::vector<Rgba>& out) {
   const auto [nu, nv] = slice_size(m, p);
   out.resize(static_cast<std::size_t>(nu) * nv);
@@ -72,12 +74,12 @@ void slice_colours(const Model& m, Plane p, int k, const std::vector<Vec3>& pos,
       const auto u = static_cast<std::size_t>(i);
       Rgba c = s.base == BaseColour::Tissue ? tissue_colour(m.tissue[u]) : hu_grey(m.hu[u], s.level, s.width);
       if (s.overlay != Overlay::None && (s.overlay_air || m.tissue[u] != 0))
-        c = blend_overlay(c, overlay_value(m, i, pos, prev, s.overlay), s.overlay_max, s.overlay_opacity);
+        c = blend_overlay(c, overlay_value(i, disp, prev, s.overlay), s.overlay_max, s.overlay_opacity);
       out[static_cast<std::size_t>(a) + static_cast<std::size_t>(nu) * b] = c;
     }
 }
 
-float slice_overlay_max(const Model& m, Plane p, int k, const std::vector<Vec3>& pos, const std::vector<Vec3>& prev,
+float slice_overlay_max(const Model& m, Plane p, int k, const std::vector<Vec3>& disp, const std::vector<Vec3>& prev,
                         Overlay o, bool include_air) {
   if (o == Overlay::None) return 0.0f;
   const auto [nu, nv] = slice_size(m, p);
@@ -85,7 +87,7 @@ float slice_overlay_max(const Model& m, Plane p, int k, const std::vector<Vec3>&
   for (int b = 0; b < nv; ++b)
     for (int a = 0; a < nu; ++a) {
       const Index i = slice_element(m, p, k, a, b);
-      if (include_air || m.tissue[static_cast<std::size_t>(i)] != 0) mx = std::max(mx, overlay_value(m, i, pos, prev, o));
+      if (include_air || m.tissue[static_cast<std::size_t>(i)] != 0) mx = std::max(mx, overlay_value(i, disp, prev, o));
     }
   return mx;
 }

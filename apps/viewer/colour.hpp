@@ -45,13 +45,14 @@ Rgba overlay_map(float t);
 /// so zero shows the plain base colour).
 Rgba blend_overlay(Rgba base, float value, float max_value, float opacity);
 
-/// Colours of every vertex of slice k. `prev` (positions at the end of the previous frame)
-/// is used for the speed overlay; it may be empty (speed 0).
-void slice_colours(const Model& m, Plane p, int k, const std::vector<Vec3>& pos, const std::vector<Vec3>& prev,
+/// Colours of every vertex of slice k from the displacements from rest `disp` (u = X - X0).
+/// `prev` (displacements at the end of the previous frame) is used for the speed overlay; it
+/// may be empty (speed 0).
+void slice_colours(const Model& m, Plane p, int k, const std::vector<Vec3>& disp, const std::vector<Vec3>& prev,
                    const ColourSettings& s, std::vector<Rgba>& out);
 
 /// Largest overlay value over slice k (for the automatic colour-map range).
-float slice_overlay_max(const Model& m, Plane p, int k, const std::vector<Vec3>& pos, const std::vector<Vec3>& prev,
+float slice_overlay_max(const Model& m, Plane p, int k, const std::vector<Vec3>& disp, const std::vector<Vec3>& prev,
                         Overlay o, bool include_air);
 
 }  // namespace hpcm::viewer

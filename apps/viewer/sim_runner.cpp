@@ -167,7 +167,7 @@ void SimRunner::reset() {
 void SimRunner::start_over() {
   tool_ = {};
   last_report_ = {};
-  last_pos_.reset();
+  last_disp_.reset();
   last_prev_.reset();
   positions_dirty_ = true;
   ++epoch_;
@@ -445,18 +445,15 @@ void SimRunner::publish(bool stepped) {
   f->model_id = model_id_;
   // Positions change only in a frame (and on reset or new data): tool moves, parameters and
   // run/pause publish the same buffer again instead of downloading 12 bytes per element.
-  if (stepped || positions_dirty_ || !last_pos_) {
+  if (stepped || positions_dirty_ || !last_disp_) {
     auto buf = acquire_buffer();
-    // The views draw positions X0 + u (float is enough for pixels).
     sim_->backend().download_displacements(*buf);
-    const Model& m = sim_->model();
-    for (Index i = 0; i < m.size(); ++i) (*buf)[static_cast<std::size_t>(i)] = m.rest(i) + (*buf)[static_cast<std::size_t>(i)];
-    last_prev_ = stepped ? last_pos_ : last_prev_;
-    last_pos_ = std::move(buf);
+    last_prev_ = stepped ? last_disp_ : last_prev_;
+    last_disp_ = std::move(buf);
     ++positions_id_;
     positions_dirty_ = false;
   }
-  f->pos = last_pos_;
+  f->disp = last_disp_;
   f->prev = last_prev_;
   f->positions_id = positions_id_;
   f->report = last_report_;

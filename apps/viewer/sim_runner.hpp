@@ -62,9 +62,9 @@ struct PublishedFrame {
   bool running = false;     ///< the simulation runs frames on its own (not paused)
   std::shared_ptr<const Model> model;             ///< shared copy, replaced when materials are rebuilt
   std::uint64_t model_id = 0;                     ///< changes with `model`
-  std::shared_ptr<const std::vector<Vec3>> pos;   ///< X(t), frame-end positions
-  std::uint64_t positions_id = 0;                 ///< changes when `pos` is a new download
-  std::shared_ptr<const std::vector<Vec3>> prev;  ///< X(t-1); null after a reset (speed 0)
+  std::shared_ptr<const std::vector<Vec3>> disp;  ///< u(t) = X(t) - X0, frame-end displacements
+  std::uint64_t positions_id = 0;                 ///< changes when `disp` is a new download
+  std::shared_ptr<const std::vector<Vec3>> prev;  ///< u(t-1); null after a reset (speed 0)
   FrameReport report{};                           ///< of the last step (default after a reset)
   Params params;
   BackendKind backend = BackendKind::Cpu;
@@ -190,7 +190,7 @@ class SimRunner {
   std::shared_ptr<const Model> model_copy_;
   std::uint64_t model_id_ = 0;
   std::vector<std::shared_ptr<std::vector<Vec3>>> pool_;
-  std::shared_ptr<const std::vector<Vec3>> last_pos_, last_prev_;
+  std::shared_ptr<const std::vector<Vec3>> last_disp_, last_prev_;
   bool positions_dirty_ = true;  // positions may differ from last_pos_ (a step, reset, new data)
   std::uint64_t positions_id_ = 0;
   FrameReport last_report_{};

@@ -106,13 +106,16 @@ std::vector<std::uint32_t> slice_lines(int nu, int nv) {
   return idx;
 }
 
-void slice_positions(const Model& m, Plane p, int k, const std::vector<Vec3>& pos, std::vector<Vec2f>& out) {
+void slice_positions(const Model& m, Plane p, int k, const std::vector<Vec3>& disp, std::vector<Vec2f>& out) {
   const auto [nu, nv] = slice_size(m, p);
   out.resize(static_cast<std::size_t>(nu) * nv);
   for (int b = 0; b < nv; ++b)
-    for (int a = 0; a < nu; ++a)
+    for (int a = 0; a < nu; ++a) {
+      const Index i = slice_element(m, p, k, a, b);
+      // X0 + u in float: enough for pixels.
       out[static_cast<std::size_t>(a) + static_cast<std::size_t>(nu) * b] =
-          to_display(p, m.spacing, pos[static_cast<std::size_t>(slice_element(m, p, k, a, b))]);
+          to_display(p, m.spacing, m.rest(i) + disp[static_cast<std::size_t>(i)]);
+    }
 }
 
 Index pick_element(const Model& m, Plane p, int k, const std::vector<Vec2f>& verts, Vec2f d, float max_dist_mm) {

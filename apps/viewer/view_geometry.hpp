@@ -66,8 +66,8 @@ std::vector<std::uint32_t> slice_triangles(int nu, int nv);
 /// Line-list indices of the mesh edges (for the optional wire-frame).
 std::vector<std::uint32_t> slice_lines(int nu, int nv);
 
-/// Display positions of every vertex of slice k from element positions `pos` (deformed).
-void slice_positions(const Model& m, Plane p, int k, const std::vector<Vec3>& pos, std::vector<Vec2f>& out);
+/// Display positions of every vertex of slice k (deformed: rest plus the displacements `disp`).
+void slice_positions(const Model& m, Plane p, int k, const std::vector<Vec3>& disp, std::vector<Vec2f>& out);
 
 /// The slice element nearest to display point `d` among the deformed vertices `verts` (as
 /// filled by slice_positions). Returns -1 when the nearest one is farther than `max_dist_mm`

@@ -425,7 +425,7 @@ void Viewer::fit_views() {
 // colours when those or the colour settings changed (or, with an overlay, the positions).
 void Viewer::update_meshes() {
   const Model& m = *shown_->model;
-  const std::vector<Vec3>& pos = *shown_->pos;
+  const std::vector<Vec3>& disp = *shown_->disp;
   static const std::vector<Vec3> kNoPrev;
   const std::vector<Vec3>& prev = shown_->prev ? *shown_->prev : kNoPrev;
   bool moved[kPlaneCount] = {false, false, false};
@@ -438,13 +438,13 @@ void Viewer::update_meshes() {
     MeshInputs& in = v.mesh;
     moved[p] = !in.valid || in.model_id != shown_->model_id || in.slice != v.slice || in.positions != shown_->positions_id;
     if (moved[p]) {
-      slice_positions(m, v.plane, v.slice, pos, v.verts);
+      slice_positions(m, v.plane, v.slice, disp, v.verts);
       const auto sz = slice_size(m, v.plane);
       renderer_->upload_positions(p, sz[0], sz[1], v.verts);
       scene_stale_ = true;
     }
     if (moved[p] || in.seen_overlay != colour_.overlay || in.seen_air != colour_.overlay_air) {
-      v.overlay_seen = slice_overlay_max(m, v.plane, v.slice, pos, prev, colour_.overlay, colour_.overlay_air);
+      v.overlay_seen = slice_overlay_max(m, v.plane, v.slice, disp, prev, colour_.overlay, colour_.overlay_air);
       seen_changed = true;
     }
     seen = std::max(seen, v.overlay_seen);
@@ -464,7 +464,7 @@ void Viewer::update_meshes() {
     MeshInputs& in = v.mesh;
     const bool geometry = !in.valid || in.model_id != shown_->model_id || in.slice != v.slice;
     if (geometry || (moved[p] && colour_.overlay != Overlay::None) || !(in.colours == colour_)) {
-      slice_colours(m, v.plane, v.slice, pos, prev, colour_, v.cols);
+      slice_colours(m, v.plane, v.slice, disp, prev, colour_, v.cols);
       renderer_->upload_colours(p, v.cols);
       scene_stale_ = true;
     }

@@ -76,25 +76,21 @@ TEST(ViewerSimRunner, CommandsGiveTheSameFramesAsTheSimulationItself) {
   for (int k = 0; k < 2; ++k) direct.step();
   direct.release();
   for (int k = 0; k < 2; ++k) direct.step();
-  // The views get positions X0 + u (floats, as the runner computes them).
-  auto positions = [&] {
-    std::vector<Vec3> x = direct.state().disp;
-    for (Index i = 0; i < direct.model().size(); ++i) x[static_cast<std::size_t>(i)] = direct.model().rest(i) + x[static_cast<std::size_t>(i)];
-    return x;
-  };
-  const std::vector<Vec3> before_last = positions();
+  // The views get the displacements u = X - X0.
+  auto displacements = [&] { return direct.state().disp; };
+  const std::vector<Vec3> before_last = displacements();
   direct.step();
 
-  ASSERT_TRUE(f && f->pos && f->prev);
+  ASSERT_TRUE(f && f->disp && f->prev);
   EXPECT_EQ(f->frame, 8);
   EXPECT_TRUE(f->stepped);
   EXPECT_FALSE(f->tool.held);
   EXPECT_TRUE(f->tool.shown);
   EXPECT_EQ(f->tool.centre, centre);
-  EXPECT_EQ(*f->pos, positions());  // bitwise: the thread changes nothing in the physics
-  EXPECT_EQ(*f->prev, before_last);        // X(t-1) for the speed overlay
+  EXPECT_EQ(*f->disp, displacements());  // bitwise: the thread changes nothing in the physics
+  EXPECT_EQ(*f->prev, before_last);        // u(t-1) for the speed overlay
   std::size_t moved = 0;
-  for (std::size_t i = 0; i < before_last.size(); ++i) moved += !(before_last[i] == direct.model().rest(static_cast<Index>(i)));
+  for (std::size_t i = 0; i < before_last.size(); ++i) moved += !(before_last[i] == Vec3{});
   EXPECT_GT(moved, 0u) << "the grab moved nothing: the comparison would be empty";
   const auto samples = runner.take_samples();
   ASSERT_EQ(samples.size(), 8u);  // one per frame, none skipped
@@ -208,15 +204,15 @@ TEST(ViewerSimRunner, PositionsAreDownloadedAgainOnlyWhenTheyChanged) {
   auto f = wait_until(runner, [](const PublishedFrame& x) { return x.tool.requested.y == -2.0f; });
   EXPECT_GT(f->seq, rest->seq);
   EXPECT_EQ(f->positions_id, rest->positions_id);
-  EXPECT_EQ(f->pos.get(), rest->pos.get());
+  EXPECT_EQ(f->disp.get(), rest->disp.get());
 
   // A frame moves the tissue: a new download, a new id, and the old positions become X(t-1).
   runner.step_frames(1);
   const auto stepped = wait_frame(runner, 1);
   EXPECT_NE(stepped->positions_id, rest->positions_id);
-  EXPECT_NE(stepped->pos.get(), rest->pos.get());
-  EXPECT_EQ(stepped->prev.get(), rest->pos.get());
-  EXPECT_NE(*stepped->pos, *rest->pos);
+  EXPECT_NE(stepped->disp.get(), rest->disp.get());
+  EXPECT_EQ(stepped->prev.get(), rest->disp.get());
+  EXPECT_NE(*stepped->disp, *rest->disp);
 
   // A parameter change may reload the backend: downloaded again (same values), X(t-1) kept.
   Params q = p;
@@ -224,7 +220,7 @@ TEST(ViewerSimRunner, PositionsAreDownloadedAgainOnlyWhenTheyChanged) {
   runner.set_params(q);
   f = wait_until(runner, [](const PublishedFrame& x) { return x.params.dynamics.mode == DampingMode::Simple; });
   EXPECT_NE(f->positions_id, stepped->positions_id);
-  EXPECT_EQ(*f->pos, *stepped->pos);
+  EXPECT_EQ(*f->disp, *stepped->disp);
   EXPECT_EQ(f->prev.get(), stepped->prev.get());
 }
 
@@ -271,8 +267,8 @@ TEST(ViewerSimRunner, ResetAndParametersApplyBetweenFrames) {
   EXPECT_EQ(f->params.dynamics.mode, DampingMode::Simple);  // the invalid set was not applied
   const auto notices = runner.take_notices();
   EXPECT_EQ(count(notices, Notice::Kind::ParamError), 1);
-  for (std::size_t i = 0; i < f->pos->size(); ++i)
-    ASSERT_TRUE((*f->pos)[i] == f->model->rest(static_cast<Index>(i))) << "element " << i << " not at rest after reset";
+  for (std::size_t i = 0; i < f->disp->size(); ++i)
+    ASSERT_TRUE((*f->disp)[i] == Vec3{}) << "element " << i << " not at rest after reset";
 }
 
 TEST(ViewerRateMeter, CountsFramesOverItsWindow) {

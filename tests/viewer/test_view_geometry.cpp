@@ -26,12 +26,6 @@ Model small_model(Int3 dims, std::array<double, 3> spacing = {1, 1, 1}) {
   return m;
 }
 
-std::vector<Vec3> rest_positions(const Model& m) {
-  std::vector<Vec3> p(static_cast<std::size_t>(m.size()));
-  for (Index i = 0; i < m.size(); ++i) p[static_cast<std::size_t>(i)] = m.rest(i);
-  return p;
-}
-
 }  // namespace
 
 TEST(ViewerGeometry, PlaneAxesFollowRadiologicalLps) {
@@ -123,11 +117,11 @@ TEST(ViewerGeometry, SliceElementsAreTheRightOnes) {
 
 TEST(ViewerGeometry, PickFindsTheDeformedElementUnderTheCursor) {
   const Model m = small_model({12, 12, 10}, {2, 2, 2});
-  std::vector<Vec3> pos = rest_positions(m);
+  std::vector<Vec3> disp(static_cast<std::size_t>(m.size()));  // displacements from rest
   const Index moved = m.index(6, 3, 5);
-  pos[static_cast<std::size_t>(moved)] = {6.0f, 0.4f, 5.0f};  // pulled anterior by 2.6 cells
+  disp[static_cast<std::size_t>(moved)] = {0.0f, -2.6f, 0.0f};  // pulled anterior by 2.6 cells, to (6, 0.4, 5)
   std::vector<Vec2f> verts;
-  slice_positions(m, Plane::Axial, 5, pos, verts);
+  slice_positions(m, Plane::Axial, 5, disp, verts);
   // The cursor at the element's *current* place picks it, not the element resting there.
   EXPECT_EQ(pick_element(m, Plane::Axial, 5, verts, to_display(Plane::Axial, m.spacing, {6.1f, 0.5f, 5}), 2.0f), moved);
   EXPECT_EQ(pick_element(m, Plane::Axial, 5, verts, to_display(Plane::Axial, m.spacing, {2.2f, 7.9f, 5}), 2.0f),
@@ -153,22 +147,26 @@ TEST(ViewerColour, WindowTissueAndOverlay) {
 
 TEST(ViewerColour, DisplacementOverlayMarksTheMovedElementOnly) {
   const Model m = small_model({12, 12, 10});
-  std::vector<Vec3> pos = rest_positions(m);
+  std::vector<Vec3> disp(static_cast<std::size_t>(m.size()));  // displacements from rest
   const Index i = m.index(6, 6, 5);  // inside the phantom body (not air)
   ASSERT_NE(m.tissue[static_cast<std::size_t>(i)], 0);
-  pos[static_cast<std::size_t>(i)].y -= 1.0f;
+  disp[static_cast<std::size_t>(i)].y -= 1.0f;
   ColourSettings s;
   s.overlay = Overlay::Displacement;
   s.overlay_max = 1.0f;
   std::vector<Rgba> with, without;
-  slice_colours(m, Plane::Axial, 5, pos, {}, s, with);
+  slice_colours(m, Plane::Axial, 5, disp, {}, s, with);
   s.overlay = Overlay::None;
-  slice_colours(m, Plane::Axial, 5, pos, {}, s, without);
+  slice_colours(m, Plane::Axial, 5, disp, {}, s, without);
   int differing = 0;
   for (std::size_t k = 0; k < with.size(); ++k) differing += with[k] != without[k];
   EXPECT_EQ(differing, 1);
   EXPECT_NE(with[6 + 12 * 6], without[6 + 12 * 6]);
-  EXPECT_FLOAT_EQ(slice_overlay_max(m, Plane::Axial, 5, pos, {}, Overlay::Displacement, false), 1.0f);
+  EXPECT_FLOAT_EQ(slice_overlay_max(m, Plane::Axial, 5, disp, {}, Overlay::Displacement, false), 1.0f);
+  // The speed overlay: the change of displacement since the previous frame.
+  std::vector<Vec3> prev = disp;
+  prev[static_cast<std::size_t>(i)].y += 0.25f;
+  EXPECT_FLOAT_EQ(slice_overlay_max(m, Plane::Axial, 5, disp, prev, Overlay::Speed, false), 0.25f);
 }
 
 TEST(ViewerPng, RoundTripAndClearErrors) {
