@@ -27,14 +27,33 @@ struct LinkLimits {
 /// three edges form the columns of the cell's Jacobian; each column's axial component is at
 /// least 1 - 0.8 tau and its two shear components are at most this limit, so every column is
 /// diagonally dominant by at least 0.02 and the determinant is positive (docs/solver.md).
-HPCM_HD inline float shear_limit(float tau) {
-  const float cap = 0.5f * (0.98f - 0.8f * tau);
+/// Written once over the lane type T: float (host and device) or a GCC vector of floats (the
+/// CPU's SIMD kernels rebuild each link's box from its tolerance, lane by lane).
+template <class T>
+HPCM_HD inline T shear_limit(T tau) {
+  const T cap = 0.5f * (0.98f - 0.8f * tau);
   return tau < cap ? tau : cap;
 }
 
-/// Spacing in [1 - 0.8 tau, 1 + tau] (SPEC §3): stretch in [-0.8 tau, tau].
+/// A link's box on lane type T (LinkLimits without the time penalty): stretch in
+/// [min_stretch, max_stretch], |shear| <= shear across the link.
+template <class T>
+struct LinkBox {
+  T min_stretch, max_stretch, shear;
+};
+
+/// The box of a link of tolerance tau: spacing in [1 - 0.8 tau, 1 + tau] (SPEC §3), so
+/// stretch in [-0.8 tau, tau], and shear_limit(tau) across it. The one definition of the box:
+/// limits_from_tau (the model's link table) and the SIMD kernels use it.
+template <class T>
+HPCM_HD inline LinkBox<T> box_from_tau(T tau) {
+  return {-(0.8f * tau), tau, shear_limit(tau)};
+}
+
+/// The limits of a link of tolerance tau and time penalty w (box_from_tau).
 HPCM_HD inline LinkLimits limits_from_tau(float tau, float w) {
-  return {-(0.8f * tau), tau, shear_limit(tau), w};
+  const LinkBox<float> b = box_from_tau(tau);
+  return {b.min_stretch, b.max_stretch, b.shear, w};
 }
 
 /// Smallest axial spacing of a link's fold box (less where the link's own box allows less).

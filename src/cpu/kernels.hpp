@@ -33,14 +33,29 @@ using LayerRowKernel = void (*)(Storage& st, const dynamics::LayerConstants& k, 
 using LinkRowKernel = void (*)(const Storage& st, const solver::Wall& wall, int h, int y, int z, int j0, int j1,
                               std::vector<int>& flagged);
 
-/// The relaxation's step, solver::relax_coordinate(cur, s / sw, omega), on n lanes through the
-/// relaxation kernel's own vector code: lets tests hold every path to the scalar rule on chosen
-/// values (steps a few float steps long, signed zeros, denormals).
+/// The relaxation's step, solver::relax_coordinate(cur, s / sw, omega), on n lanes through this
+/// width's instantiation of the rule (the one the relaxation kernel calls): lets tests hold
+/// every path to the float rule on chosen values (steps a few float steps long, signed zeros,
+/// denormals).
 using RelaxStepKernel = void (*)(const float* s, const float* sw, const float* cur, float omega, float* out, int n);
+
+/// The link rules (hpcm/material.hpp, core/link_box.hpp) on n lanes, through this width's
+/// instantiation (the one the relaxation and link-check kernels call). Inputs per lane: the
+/// link's tolerance tau, a neighbour coordinate c, a link's displacement differences d[3].
+/// Outputs per lane: box_from_tau(tau); link_interval(c, box, axial, side) as [lo, hi];
+/// link_axis_excess(d[0], box, axial); link_violation(d, box, axis).
+struct LinkRuleLanes {
+  const float* tau;
+  const float* c;
+  const float* d[3];
+  float *min_stretch, *max_stretch, *shear, *lo, *hi, *excess, *violation;
+};
+using LinkRulesKernel = void (*)(const LinkRuleLanes& io, bool axial, int side, int axis, int n);
 
 struct SimdKernels {
   RelaxRunKernel relax = nullptr;
   RelaxStepKernel relax_step = nullptr;
+  LinkRulesKernel link_rules = nullptr;
   LayerRowKernel layer = nullptr;
   LinkRowKernel link_check = nullptr;
   const char* name = "";  ///< "avx512", "avx2" or "sse2"

@@ -1,8 +1,9 @@
 #pragma once
 // The vector filter of the link check (cpu/link_check.cpp), N elements at a time: included by
 // each simd_*.cpp (4-, 8- or 16-wide). It only decides which elements the exact
-// scalar check looks at, so any lane it flags is checked again exactly; the arithmetic is
-// link_violation's, lane by lane, so every width flags the same elements.
+// scalar check looks at, so any lane it flags is checked again exactly; the test is
+// link_violation (core/link_box.hpp) on the box from the link's tolerance (box_from_tau), the
+// same definition at every width, so every width flags the same elements.
 #include <vector>
 
 #include "cpu/kernels.hpp"
@@ -10,23 +11,6 @@
 #include "solver/restore.hpp"
 
 namespace hpcm::cpu::simd {
-
-/// Largest violation per lane of the link from p (lower end) to q (upper end) along axis a
-/// (displacements from rest).
-template <class V>
-inline V link_excess(const V (&p)[3], const V (&q)[3], V tau, int a) {
-  const V k08 = splat<V>(0.8f);
-  const V min_s = -(k08 * tau), max_s = tau;
-  const V cap = splat<V>(0.5f) * (splat<V>(0.98f) - k08 * tau);
-  const V shear = tau < cap ? tau : cap;
-  V v = splat<V>(0.0f);
-  for (int b = 0; b < 3; ++b) {
-    const V d = q[b] - p[b];
-    const V e = b == a ? vmax(min_s - d, d - max_s) : vmax(d, -d) - shear;
-    v = vmax(v, e);
-  }
-  return v;
-}
 
 /// Elements j in [j0, j1) of half h of row (y, z) (all with a +x neighbour); appends those whose
 /// +x, +y or +z link or whose wall distance may exceed the restoration tolerance to `flagged`.
@@ -55,8 +39,9 @@ void link_check_row(const Storage& st, const solver::Wall& wall, int h, int y, i
     V worst = splat<V>(0.0f);
     for (int b = 0; b < 3; ++b) worst = vmax(worst, vmax(wlo[b] - p[b], p[b] - whi[b]));
     auto link = [&](Index kq, int a) {
-      const V q[3] = {load<V>(st.p[0].data() + kq), load<V>(st.p[1].data() + kq), load<V>(st.p[2].data() + kq)};
-      worst = vmax(worst, link_excess<V>(p, q, load<V>(st.link_tau[a].data() + k), a));
+      const V d[3] = {load<V>(st.p[0].data() + kq) - p[0], load<V>(st.p[1].data() + kq) - p[1],
+                      load<V>(st.p[2].data() + kq) - p[2]};  // the link's + end minus its - end
+      worst = vmax(worst, link_violation(d, box_from_tau(load<V>(st.link_tau[a].data() + k)), a));
     };
     link(ko + j, 0);
     if (has_y) link(k + sy, 1);

@@ -48,31 +48,27 @@ float relax_element_scalar(const RelaxContext& c, int x, int y, int z) {
   if (count == 0) return 0.0f;
   const Vec3 cur{c.p[0][k], c.p[1][k], c.p[2][k]};
 
-  // The rule with precomputed weights (solver::relax_element, same floats and order).
-  float sx = 0, s_y = 0, s_z = 0, sw = 0;
+  // The rule with precomputed weights (solver::relax_weight per element): solver::relax_element's
+  // sum and step, the boxes rebuilt from the links' tolerances as the SIMD kernels do.
+  solver::ProposalSum<float> sum;
   const solver::Wall wall = solver::element_wall(c.wall, x, y, z);
   float lo[3] = {wall.lo[0], wall.lo[1], wall.lo[2]}, hi[3] = {wall.hi[0], wall.hi[1], wall.hi[2]};
   for (int q = 0; q < count; ++q) {
     const Nb& n = nb[q];
-    const float w = c.weight[n.k];
     const Vec3 pn{c.p[0][n.k], c.p[1][n.k], c.p[2][n.k]};
-    const Vec3 off = pn - cur;  // the proposal's offset from cur (see solver::relax_element)
-    sx += w * off.x;
-    s_y += w * off.y;
-    s_z += w * off.z;
-    sw += w;
-    const LinkLimits lim = limits_from_tau(c.link_tau[n.axis][n.link_owner], 1.0f);
+    const Vec3 off = pn - cur;  // the proposal's offset from cur
+    sum.add(c.weight[n.k], off.x, off.y, off.z);
+    const LinkBox<float> box = box_from_tau(c.link_tau[n.axis][n.link_owner]);
     for (int b = 0; b < 3; ++b) {
       float l, h;
-      link_interval(pn, lim, n.axis, n.side, b, l, h);
+      link_interval(pn[b], box, b == n.axis, n.side, l, h);
       lo[b] = lo[b] > l ? lo[b] : l;
       hi[b] = hi[b] < h ? hi[b] : h;
     }
   }
   Vec3 out;
   if (!(lo[0] > hi[0] || lo[1] > hi[1] || lo[2] > hi[2])) {
-    const Vec3 target{solver::relax_coordinate(cur.x, sx / sw, c.omega), solver::relax_coordinate(cur.y, s_y / sw, c.omega),
-                      solver::relax_coordinate(cur.z, s_z / sw, c.omega)};
+    const Vec3 target{sum.target(0, cur.x, c.omega), sum.target(1, cur.y, c.omega), sum.target(2, cur.z, c.omega)};
     for (int b = 0; b < 3; ++b) out[b] = clampf(target[b], lo[b], hi[b]);
   } else {
     // Conflicting boxes: the general rule decides (earliest neighbour's box, then the wall).

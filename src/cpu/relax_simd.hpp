@@ -2,13 +2,13 @@
 // The relaxation rule over a run of one colour, N elements at a time (through kernel_table.hpp,
 // in simd_sse2.cpp, simd_avx2.cpp and simd_avx512.cpp with 4-, 8- and 16-wide vectors; each file
 // is compiled for its instruction set). Lane by lane these are the floating-point operations of
-// relax_element_scalar in the same order, on displacements from rest: weights times the
-// proposals' offsets from the element summed over the neighbours -x, +x, -y, +y, -z, +z from
-// zero, the box limits rebuilt from the link's tolerance exactly as limits_from_tau does, the
-// element's wall (solver::element_wall) lane by lane, max/min for the intersection, one
-// IEEE division, the over-relaxed step kept below twice the correction
-// (solver::relax_coordinate, nextafterf on the bit pattern) and the clamp. No fused
-// multiply-add (the build uses -ffp-contract=off, and the wide files do not enable FMA). Lanes
+// relax_element_scalar in the same order, on displacements from rest, through the rules written
+// once over the lane type: weights times the proposals' offsets from the element summed over the
+// neighbours -x, +x, -y, +y, -z, +z from zero (solver::ProposalSum), each link's box rebuilt from
+// its tolerance (box_from_tau) and its interval (link_interval), the element's wall
+// (solver::element_wall) lane by lane, max/min for the intersection, one IEEE division, the
+// over-relaxed step kept below twice the correction (solver::relax_coordinate) and the clamp.
+// No fused multiply-add (the build uses -ffp-contract=off, and the wide files do not enable FMA). Lanes
 // whose boxes do not intersect, and the border elements of the lattice, go to the scalar rule.
 // The last vector of a run is masked; its loads may run past the run into the next row, the
 // stagger gap or the next plane, where another thread may be writing (the relaxation of an
@@ -50,8 +50,7 @@ float relax_span(const RelaxContext& c, const RelaxRun& r, int ya, int yb) {
   V max_sq_v = splat<V>(0.0f);  // largest squared correction applied by the vector lanes
   const V minus_inf = splat<V>(-solver::kInf), plus_inf = splat<V>(solver::kInf);
   const V zero = splat<V>(0.0f);
-  const V k08 = splat<V>(0.8f), k098 = splat<V>(0.98f), khalf = splat<V>(0.5f);
-  const V omega = splat<V>(c.omega), limit_factor = splat<V>(0.5f * (2.0f + c.omega)), threshold_sq = splat<V>(c.threshold_sq);
+  const V omega = splat<V>(c.omega), threshold_sq = splat<V>(c.threshold_sq);
   // The element's wall (solver::element_wall): wall - X0, lane by lane on x, per row on y and z.
   const V wall_lo_x = splat<V>(c.wall.lo[0]), wall_hi_x = splat<V>(c.wall.hi[0]);
   const V wall_lo_z = splat<V>(solver::wall_lo_of(c.wall, 2, r.z)), wall_hi_z = splat<V>(solver::wall_hi_of(c.wall, 2, r.z));
@@ -94,7 +93,7 @@ float relax_span(const RelaxContext& c, const RelaxRun& r, int ya, int yb) {
         prefetch(flags + k + kAhead);
       }
       const V cur0 = load<V>(px + k), cur1 = load<V>(py + k), cur2 = load<V>(pz + k);
-      V s0 = zero, s1 = zero, s2 = zero, sw = zero;
+      solver::ProposalSum<V> sum;
       // Lanes whose element has no -x (x = 0) or no +x (x = nx - 1) neighbour.
       const V x = splat<V>(static_cast<float>(h)) + splat<V>(2.0f) * (lane_index + splat<V>(static_cast<float>(j)));
       V lo0 = wall_lo_x - x, lo1 = wall_lo_y, lo2 = wall_lo_z;
@@ -111,25 +110,12 @@ float relax_span(const RelaxContext& c, const RelaxRun& r, int ya, int yb) {
         if constexpr (q == 1) missing = no_right;
         if constexpr (q < 2) w = missing ? zero : w;
         const V p0 = load<V>(px + nk), p1 = load<V>(py + nk), p2 = load<V>(pz + nk);
-        const V o0 = sub_exact(p0, cur0), o1 = sub_exact(p1, cur1), o2 = sub_exact(p2, cur2);  // offsets from the element
-        s0 = s0 + w * o0;
-        s1 = s1 + w * o1;
-        s2 = s2 + w * o2;
-        sw = sw + w;
-        // limits_from_tau: stretch in [-(0.8 tau), tau], shear = min(tau, 0.5 (0.98 - 0.8 tau)).
-        const V tau = load<V>(link_tau[a] + owner);
-        const V min_s = -(k08 * tau), max_s = tau;
-        const V cap = khalf * (k098 - k08 * tau);
-        const V shear = tau < cap ? tau : cap;
+        // offsets from the element
+        sum.add(w, sub_exact(p0, cur0), sub_exact(p1, cur1), sub_exact(p2, cur2));
+        const LinkBox<V> box = box_from_tau(load<V>(link_tau[a] + owner));
         auto bound = [&](V& lo, V& hi, V pn, bool axial) {
           V l, u;
-          if (axial) {
-            l = plus_side ? add_exact(pn, min_s) : sub_exact(pn, max_s);
-            u = plus_side ? add_exact(pn, max_s) : sub_exact(pn, min_s);
-          } else {
-            l = sub_exact(pn, shear);
-            u = add_exact(pn, shear);
-          }
+          link_interval(pn, box, axial, plus_side ? 1 : -1, l, u);
           if constexpr (q < 2) {
             l = missing ? minus_inf : l;
             u = missing ? plus_inf : u;
@@ -148,8 +134,7 @@ float relax_span(const RelaxContext& c, const RelaxRun& r, int ya, int yb) {
       if (AllRows || present[4]) neighbour.template operator()<4>(k - sz, k - sz);
       if (AllRows || present[5]) neighbour.template operator()<5>(k + sz, k);
 
-      const V t0 = relax_step(s0, sw, cur0, omega, limit_factor), t1 = relax_step(s1, sw, cur1, omega, limit_factor),
-              t2 = relax_step(s2, sw, cur2, omega, limit_factor);
+      const V t0 = sum.target(0, cur0, omega), t1 = sum.target(1, cur1, omega), t2 = sum.target(2, cur2, omega);
       // clampf, valid where lo <= hi
       const V out0 = vmax(lo0, vmin(hi0, t0)), out1 = vmax(lo1, vmin(hi1, t1)), out2 = vmax(lo2, vmin(hi2, t2));
       const V d0 = out0 - cur0, d1 = out1 - cur1, d2 = out2 - cur2;

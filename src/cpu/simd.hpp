@@ -6,6 +6,8 @@
 #include <cstdint>
 #include <cstring>
 
+#include "core/lanes.hpp"
+
 namespace hpcm::cpu::simd {
 
 template <class V>
@@ -31,17 +33,8 @@ inline V vmin(V a, V b) {
   return a < b ? a : b;
 }
 
-/// a + b and a - b, one IEEE rounding each: the plain operators. The AVX-512 file specialises
-/// them as fused multiply-adds by one (a * 1 + b rounds once, to the same bits), which run on the
-/// multiply pipes while plain additions, maxima and minima queue on the add pipes (AMD Zen 4).
-template <class V>
-inline V add_exact(V a, V b) {
-  return a + b;
-}
-template <class V>
-inline V sub_exact(V a, V b) {
-  return a - b;
-}
+// hpcm::add_exact / sub_exact (a + b and a - b, one rounding each) are in core/lanes.hpp: the
+// rules the kernels share use them, and the AVX-512 file specialises them.
 
 // Per instruction set (defined in simd_sse2.cpp / simd_avx2.cpp before the kernels):
 template <class V>
@@ -59,27 +52,6 @@ unsigned lane_bits(Mask<V> m);
 /// read nor written (a masked store where the instruction set has one).
 template <class V>
 void store_lanes(float* p, V v, unsigned bits);
-
-/// solver::relax_coordinate on every lane: t = cur + omega * (s / sw), and where rounding
-/// lengthened the step to limit_factor times the correction q = s / sw or more, one float step
-/// back toward cur (nextafterf on the bit pattern: minus one where that moves toward zero).
-/// Lanes within a few float steps of their average need it, and a third to a half of all
-/// vectors have such a lane: computed without a branch, which the CPU would mispredict that
-/// often. The instruction sets with mask registers specialise it (same bits).
-template <class V>
-inline V relax_step(V s, V sw, V cur, V omega, V limit_factor) {
-  const V zero = splat<V>(0.0f);
-  const V q = s / sw;
-  V t = cur + omega * q;
-  const V d = t - cur;
-  const Mask<V> back = ((q > zero) ? (d >= limit_factor * q) : (d <= limit_factor * q)) & (q != zero);
-  const Mask<V> toward_zero = (t > cur) == (t > zero);
-  Mask<V> bits;
-  std::memcpy(&bits, &t, sizeof bits);
-  bits = bits + (back & (toward_zero | 1));  // -1, +1 or 0
-  std::memcpy(&t, &bits, sizeof t);
-  return t;
-}
 
 /// Calls f(column, lanes) once for every column of the row that holds a lane set in `bits`,
 /// with the set lanes of that column: lane l is element `first + l` of the row, counted from

@@ -10,6 +10,7 @@
 #include <algorithm>
 
 #include "cpu/simd.hpp"
+#include "solver/rules.hpp"
 
 namespace hpcm::cpu::simd {
 typedef float f16 __attribute__((vector_size(64)));
@@ -31,6 +32,10 @@ template <>
 inline void store_lanes<f16>(float* p, f16 v, unsigned bits) {
   _mm512_mask_storeu_ps(p, static_cast<__mmask16>(bits), reinterpret_cast<__m512>(v));
 }
+}  // namespace hpcm::cpu::simd
+
+namespace hpcm {
+using cpu::simd::f16;
 // a * 1 + b and b * -1 + a round once, exactly as a + b and a - b (signed zeros included).
 template <>
 inline f16 add_exact<f16>(f16 a, f16 b) {
@@ -42,28 +47,34 @@ inline f16 sub_exact<f16>(f16 a, f16 b) {
   return reinterpret_cast<f16>(
       _mm512_fnmadd_ps(reinterpret_cast<__m512>(b), _mm512_set1_ps(1.0f), reinterpret_cast<__m512>(a)));
 }
-// The step-back test on mask registers. With d = t - cur and q != 0, d has the sign of q
-// (rounding is monotone and omega > 0), so "q > 0 ? d >= limit_factor * q : d <= limit_factor * q"
-// is |d| >= |limit_factor * q|, and a NaN fails both; the toward-zero step is a masked
-// subtraction, the other a masked addition, of one on the bit pattern.
+}  // namespace hpcm
+
+namespace hpcm::solver {
+// relax_coordinate's step back on mask registers (same bits as the definition in
+// solver/rules.hpp: tests/solver/test_rules_once.cpp). With d = t - cur and q != 0, d has the
+// sign of q (rounding is monotone and omega > 0), so "q > 0 ? d >= limit : d <= limit" is
+// |d| >= |limit|, and a NaN fails both; the toward-zero step is a masked subtraction, the other
+// a masked addition, of one on the bit pattern, and a step back that lands on zero takes the
+// float next to zero on cur's side.
 template <>
-inline f16 relax_step<f16>(f16 s, f16 sw, f16 cur, f16 omega, f16 limit_factor) {
-  const f16 q = s / sw;
+inline f16 relax_coordinate<f16>(f16 cur, f16 q, f16 omega) {
   const f16 t = cur + omega * q;
   const __m512 mq = reinterpret_cast<__m512>(q), mt = reinterpret_cast<__m512>(t), mcur = reinterpret_cast<__m512>(cur);
   const __m512 zero = _mm512_setzero_ps();
-  const __m512 d = reinterpret_cast<__m512>(t - cur), lq = reinterpret_cast<__m512>(limit_factor * q);
+  const __m512 d = reinterpret_cast<__m512>(t - cur), limit = reinterpret_cast<__m512>((0.5f * (2.0f + omega)) * q);
   const __mmask16 nonzero = _mm512_cmp_ps_mask(mq, zero, _CMP_NEQ_UQ);
-  const __mmask16 back = _mm512_mask_cmp_ps_mask(nonzero, _mm512_abs_ps(d), _mm512_abs_ps(lq), _CMP_GE_OQ);
+  const __mmask16 back = _mm512_mask_cmp_ps_mask(nonzero, _mm512_abs_ps(d), _mm512_abs_ps(limit), _CMP_GE_OQ);
   const __mmask16 toward_zero =
       _kxnor_mask16(_mm512_cmp_ps_mask(mt, mcur, _CMP_GT_OQ), _mm512_cmp_ps_mask(mt, zero, _CMP_GT_OQ));
-  const __m512i one = _mm512_set1_epi32(1);
+  const __mmask16 at_zero = _mm512_mask_cmp_ps_mask(back, mt, zero, _CMP_EQ_OQ);
+  const __m512i one = _mm512_set1_epi32(1), sign = _mm512_set1_epi32(static_cast<int>(0x80000000u));
   __m512i bits = _mm512_castps_si512(mt);
   bits = _mm512_mask_sub_epi32(bits, _kand_mask16(back, toward_zero), bits, one);
   bits = _mm512_mask_add_epi32(bits, _kandn_mask16(toward_zero, back), bits, one);
+  bits = _mm512_mask_or_epi32(bits, at_zero, _mm512_and_si512(_mm512_castps_si512(mcur), sign), one);
   return reinterpret_cast<f16>(_mm512_castsi512_ps(bits));
 }
-}  // namespace hpcm::cpu::simd
+}  // namespace hpcm::solver
 
 #include "cpu/kernel_table.hpp"
 

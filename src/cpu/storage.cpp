@@ -3,6 +3,8 @@
 #include <cstdint>
 #include <limits>
 
+#include "solver/rules.hpp"
+
 namespace hpcm::cpu {
 
 namespace {
@@ -47,7 +49,7 @@ void Storage::load(const Model& m, const State& s, WorkerPool& pool) {
       v[a][k] = s.vel[u][a];
       link_tau[a][k] = m.link_tau[m.link_index[a][u]];
     }
-    weight[k] = 1.0f / (m.tau[u] + 1e-4f);  // as in solver::relax_element
+    weight[k] = solver::relax_weight(m.tau[u]);
     tissue[k] = m.tissue[u];
     stat_class[k] = m.counted(static_cast<Index>(u)) ? m.tissue[u] : kTissueCount;
     flags[k] = (s.flags[u] & kFixed) ? 0 : s.flags[u];  // the FIXED set is given per frame (set_fixed)

@@ -57,10 +57,8 @@ HPCM_HD inline float link_excess(float x, float cn, const LinkLimits& L, int a, 
 /// the upper end of the link's interval (upper) or its lower end, as link_interval computes it
 /// (the same floats as the propagation's clamp).
 HPCM_HD inline float link_bound(float cn, const LinkLimits& L, int a, int side, int b, bool upper) {
-  Vec3 pn{};
-  pn[b] = cn;
   float lo, hi;
-  link_interval(pn, L, a, side, b, lo, hi);
+  link_interval(cn, L, b == a, side, lo, hi);
   return upper ? hi : lo;
 }
 

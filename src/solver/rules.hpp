@@ -153,19 +153,57 @@ HPCM_HD inline bool propagate_in_bucket(long long e, Vec3 p0, const Neighbour* n
 /// The relaxed coordinate: cur + omega * q, where q is the correction toward the weighted
 /// average, rounded to nearest unless rounding lengthens the step to (2 + omega) / 2 times q or
 /// more (halfway from the requested over-relaxation to the stability limit 2); then the float
-/// next to it toward cur. Rounding a 1.85-times step of a few float steps to the float grid
-/// could otherwise make it a 2-times step, a mirror image through the average (2 ulps -> -2 ulps
-/// and back, for ever). With every applied step below 2 times q, each one lowers the
-/// relaxation's energy, so the relaxation always comes to rest (docs/solver.md).
-HPCM_HD inline float relax_coordinate(float cur, float q, float omega) {
-  const float t = cur + omega * q;
-  const float d = t - cur;
-  const float limit = (0.5f * (2.0f + omega)) * q;
-  if (q > 0.0f ? d >= limit : d <= limit) {
-    if (q != 0.0f) return nextafterf(t, cur);
-  }
-  return t;
+/// next to it toward cur (nextafterf(t, cur)). Rounding a 1.85-times step of a few float steps
+/// to the float grid could otherwise make it a 2-times step, a mirror image through the average
+/// (2 ulps -> -2 ulps and back, for ever). With every applied step below 2 times q, each one
+/// lowers the relaxation's energy, so the relaxation always comes to rest (docs/solver.md).
+///
+/// Written once over the lane type (core/lanes.hpp) and without a branch: a third to a half of
+/// the SIMD kernel's vectors have a lane that steps back, a branch the CPU would mispredict that
+/// often. The step back is one on the bit pattern: minus one where that moves toward zero, plus
+/// one where it moves away; from t = 0 (reached only by a step of a few denormals that lands on
+/// zero exactly) the float next to zero on cur's side. The AVX-512 kernels specialise it on mask
+/// registers (cpu/simd_avx512.cpp, same bits: tests/solver/test_rules_once.cpp).
+template <class T>
+HPCM_HD inline T relax_coordinate(T cur, T q, T omega) {
+  using I = lane_int_t<T>;
+  const T zero = T{};
+  const T t = cur + omega * q;
+  const T d = t - cur;
+  const T limit = (0.5f * (2.0f + omega)) * q;
+  // A NaN fails every comparison: no step back.
+  const auto back = (q > zero ? d >= limit : d <= limit) & (q != zero);
+  const auto toward_zero = (t > cur) == (t > zero);
+  const I bits = bit_pattern(t), one = I{} + 1, minus_one = I{} - 1;
+  const I sign_of_cur = bit_pattern(cur) & (I{} + static_cast<std::int32_t>(0x80000000u));
+  const I stepped = t == zero ? (sign_of_cur | one) : bits + (toward_zero ? minus_one : one);
+  return from_bit_pattern<T>(back ? stepped : bits);
 }
+
+/// A relaxation weight: 1 / (tau + 1e-4) for a neighbour of tolerance tau (relax_element; the
+/// CPU storage holds it per element).
+template <class T>
+HPCM_HD inline T relax_weight(T tau) {
+  return 1.0f / (tau + 1e-4f);
+}
+
+/// The relaxation's weighted sum of the neighbours' proposals, as offsets from the element
+/// (relax_element): add() once per neighbour in the rule's order -x, +x, -y, +y, -z, +z, then
+/// target() per axis. On the lane type T, as relax_coordinate.
+template <class T>
+struct ProposalSum {
+  T s[3] = {T{}, T{}, T{}};
+  T sw = T{};
+  /// A neighbour of weight w whose proposal lies at offset o from the element.
+  HPCM_HD void add(T w, T o0, T o1, T o2) {
+    s[0] = s[0] + w * o0;
+    s[1] = s[1] + w * o1;
+    s[2] = s[2] + w * o2;
+    sw = sw + w;
+  }
+  /// The relaxed coordinate b of an element at cur (relax_coordinate with q = s[b] / sw).
+  HPCM_HD T target(int b, T cur, T omega) const { return relax_coordinate(cur, s[b] / sw, omega); }
+};
 
 /// Relaxation rule: (over-relaxed step toward the) weighted average of the neighbours'
 /// proposals (their displacements u_n: a neighbour proposes that the element be displaced as it
@@ -179,17 +217,12 @@ HPCM_HD inline float relax_coordinate(float cur, float q, float omega) {
 /// step is exact to a few ulps of itself; the new displacement never becomes a 2-times step by
 /// rounding (relax_coordinate). docs/solver.md, "Relaxation arithmetic".
 HPCM_HD inline Vec3 relax_element(const Neighbour* nb, int count, Vec3 cur, float omega, const Wall& wall) {
-  float sx = 0, sy = 0, sz = 0, sw = 0;
+  ProposalSum<float> sum;
   for (int k = 0; k < count; ++k) {
-    const float w = 1.0f / (nb[k].tau + 1e-4f);
     const Vec3 off = nb[k].p - cur;
-    sx += w * off.x;
-    sy += w * off.y;
-    sz += w * off.z;
-    sw += w;
+    sum.add(relax_weight(nb[k].tau), off.x, off.y, off.z);
   }
-  const Vec3 target{relax_coordinate(cur.x, sx / sw, omega), relax_coordinate(cur.y, sy / sw, omega),
-                    relax_coordinate(cur.z, sz / sw, omega)};
+  const Vec3 target{sum.target(0, cur.x, omega), sum.target(1, cur.y, omega), sum.target(2, cur.z, omega)};
   return clamp_into_boxes(target, nb, count, (1u << count) - 1u, wall);
 }
 

@@ -31,19 +31,27 @@ namespace {
 
 constexpr double kInfD = std::numeric_limits<double>::infinity();
 
-/// Slack of the link between e and its neighbour n on coordinate axis b, in the direction
-/// "n's displacement may exceed e's by at most this": d_n <= d_e + slack (displacements d = x - X0).
-/// side = +1 when e lies on the + side of n along the link axis a.
-double slack_to(const LinkLimits& L, int a, int side, int b) {
-  if (a != b) return L.shear;
-  // n below e along the axis (side +1): n moving up compresses the link, by up to -min_stretch.
-  return side > 0 ? -static_cast<double>(L.min_stretch) : static_cast<double>(L.max_stretch);
+/// The interval [lo, hi] that the link between e and its neighbour n allows for d_e - d_n on
+/// coordinate axis b (displacements d = x - X0): link_interval at a neighbour displacement of 0,
+/// in double. side = +1 when e lies on the + side of n along the link axis a.
+void relative_interval(const LinkLimits& L, int a, int side, int b, double& lo, double& hi) {
+  const LinkBox<double> box{L.min_stretch, L.max_stretch, L.shear};
+  link_interval(0.0, box, b == a, side, lo, hi);
 }
 
-/// Slack in the other direction: d_e <= d_n + slack_from.
+/// Slack of the link in the direction "n's displacement may exceed e's by at most this":
+/// d_n <= d_e + slack (from d_e >= d_n + lo).
+double slack_to(const LinkLimits& L, int a, int side, int b) {
+  double lo, hi;
+  relative_interval(L, a, side, b, lo, hi);
+  return -lo;
+}
+
+/// Slack in the other direction: d_e <= d_n + slack_from (= hi).
 double slack_from(const LinkLimits& L, int a, int side, int b) {
-  if (a != b) return L.shear;
-  return side > 0 ? static_cast<double>(L.max_stretch) : -static_cast<double>(L.min_stretch);
+  double lo, hi;
+  relative_interval(L, a, side, b, lo, hi);
+  return hi;
 }
 
 /// Dijkstra's priority queue as a radix heap: the keys popped never decrease (the slacks are

@@ -34,7 +34,9 @@ struct ReferenceWave {
 
 /// Axis interval [lo, hi] that the link between e and its neighbour n (at position pn) allows
 /// for e's coordinate on axis b. `a` is the link's axis; `e_plus` is true when e is on the
-/// + side of n (e = n + unit_a at rest); `L` is the link's limits.
+/// + side of n (e = n + unit_a at rest); `L` is the link's limits. Written here a second time
+/// on purpose, apart from core/link_box.hpp: the reference is the oracle the shared rules are
+/// tested against, so it does not call them.
 struct Interval {
   float lo, hi;
 };
