@@ -134,6 +134,7 @@ class Simulation {
   std::vector<Vec3> grab_origin_;
   Index grab_centre_ = -1;
   Vec3 tool_offset_{}, requested_offset_{};
+  Control control_;  ///< the FIXED set (anchors, then the grab) and its targets, given to every step
   std::unique_ptr<solver::ToolLimitSearch> tool_limit_;  ///< of the current grab; null when none
   std::vector<std::uint8_t> anchored_;  ///< per element: anchored at rest (grabbed elements excluded)
   int frame_ = 0;

@@ -68,7 +68,11 @@ class DeviceBackend final : public Backend {
   Index restore_bricks_copied() const { return cache_fetched_; }
   Index restore_cache_misses() const { return cache_misses_; }
 
-  void load(const Model& m, const Params& p, const State& s) override {
+  const Model& model() const override { return *m_; }
+  const Params& params() const override { return p_; }
+
+ protected:
+  void upload(const Model& m, const Params& p, const State& s) override {
     p.validate();
     const Index n = m.size();
     if (static_cast<Index>(s.disp.size()) != n || static_cast<Index>(s.vel.size()) != n ||
@@ -177,8 +181,7 @@ class DeviceBackend final : public Backend {
     x_.sync();
   }
 
-  void set_params(const Params& p) override {
-    p.validate();
+  void params_changed(const Params& p) override {
     const bool bricks_changed = p.solver.brick_size != p_.solver.brick_size;
     p_ = p;
     k_ = dynamics::make_constants(p.dynamics, m_->dims);
@@ -195,16 +198,10 @@ class DeviceBackend final : public Backend {
     }
   }
 
-  void set_fixed(const std::vector<Index>& elements, const std::vector<Vec3>& targets,
-                 const std::vector<std::uint8_t>& flags) override {
-    if (targets.size() != elements.size() || flags.size() != elements.size())
-      throw Error("set_fixed: elements, targets and flags must have the same length");
-    // Validate everything before changing anything (seen_ included): a refused call leaves the
-    // old set in force.
-    for (Index e : elements)
-      if (e < 0 || e >= L_.n)
-        throw Error("set_fixed: element " + std::to_string(e) + " is out of range [0, " + std::to_string(L_.n - 1) +
-                    "]");
+  void install_fixed(const Control& c) override {
+    const std::vector<Index>& elements = c.fixed();
+    const std::vector<Vec3>& targets = c.targets();
+    const std::vector<std::uint8_t>& flags = c.flags();
     // Duplicates (an anchor that is also grabbed): the last occurrence wins, as on the CPU.
     std::vector<int> idx;
     std::vector<Vec3> tg;
@@ -242,6 +239,16 @@ class DeviceBackend final : public Backend {
     fixed_ = std::move(idx);
   }
 
+  void begin_frame() override {
+    active_bricks();  // settle the previous frame's count
+    active_ = 0;
+  }
+  /// Phase p is timed between events 2p and 2p + 1 of the executor (CUDA events on the stream).
+  void phase_begin(Phase p) override { x_.mark(2 * static_cast<int>(p)); }
+  void phase_end(Phase p) override { x_.mark(2 * static_cast<int>(p) + 1); }
+  double phase_ms(Phase p) override { return x_.elapsed(2 * static_cast<int>(p), 2 * static_cast<int>(p) + 1); }
+
+ public:
   void snapshot() override {}  // fused into velocity_layer(): X- == X between frames
 
   PropagateStats propagate() override {
@@ -427,16 +434,6 @@ class DeviceBackend final : public Backend {
     const Index b = active_bricks();
     return std::min<Index>(L_.n, b * L_.grid.size * L_.grid.size * L_.grid.size);
   }
-
-  void mark(int slot) override {
-    if (slot < 0 || slot >= 8) throw Error("mark: slot " + std::to_string(slot) + " is out of range [0, 7]");
-    if (slot == 0) {
-      active_bricks();  // settle the previous frame's count
-      active_ = 0;
-    }
-    x_.mark(slot);
-  }
-  double elapsed_ms(int a, int b) override { return x_.elapsed(a, b); }
 
   DeviceProbe probe(int reps) override {
     if (reps < 1) reps = 1;

@@ -148,8 +148,9 @@ inline void check_waves(const Factory& make_device, const Model& m, const Params
     std::vector<Vec3> targets;
     for (Index i : fixed) targets.push_back(now[static_cast<std::size_t>(i)] + off);
     const std::vector<std::uint8_t> fl(fixed.size(), kGrabbed);
-    cpu->set_fixed(fixed, targets, fl);
-    dev->set_fixed(fixed, targets, fl);
+    const Control control(fixed, targets, fl);
+    cpu->apply_control(control);
+    dev->apply_control(control);
     cpu->snapshot();
     dev->snapshot();
     const PropagateStats pc = cpu->propagate(), pd = dev->propagate();

@@ -89,7 +89,7 @@ TEST(CudaEmulation, PropagationListsGrowOnOverflow) {
   const std::vector<Index> fixed = ball(m, Int3{14, 14, 7}, 1.5f);
   std::vector<Vec3> targets;
   for (Index i : fixed) targets.push_back(Vec3{0, -2.0f, 0});
-  b.set_fixed(fixed, targets, std::vector<std::uint8_t>(fixed.size(), kGrabbed));
+  b.apply_control(Control(fixed, targets, std::vector<std::uint8_t>(fixed.size(), kGrabbed)));
   const PropagateStats st = b.propagate();
   EXPECT_GT(st.reached, 0);
   EXPECT_GT(b.list_regrowths(), 0) << "the tiny lists must have overflowed";
