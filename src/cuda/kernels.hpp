@@ -185,7 +185,7 @@ HPCM_HD void set_fixed_block(const FixedArgs& a, B& blk) {
   blk.each([&](int tid) {
     for (int j = tid; j < a.n; j += T) a.L.flags[a.fixed[j]] = static_cast<std::uint8_t>(kFixed | a.fflags[j]);
   });
-  // Elements released from FIXED must be relaxed again (as CpuBackend::set_fixed does).
+  // Elements released from FIXED must be relaxed again (as CpuBackend::install_fixed does).
   blk.each([&](int tid) {
     for (int j = tid; j < a.n_old; j += T) {
       const long long i = a.old_fixed[j];
