@@ -34,7 +34,9 @@ std::string vec_text(Vec3 v) {
   return s.str();
 }
 
-/// Starts a phase of the backend's clock now and ends it when it goes out of scope.
+/// Starts a phase of the backend's clock now and ends it when it goes out of scope. A clock
+/// that fails (a CUDA error) throws from end(); while a stage's exception unwinds, the
+/// destructor ends the phase quietly instead (the stage's error is the one to report).
 class ScopedPhase {
  public:
   ScopedPhase(Backend& b, Phase p, void (Backend::*begin)(Phase), void (Backend::*end)(Phase), bool& ran)
@@ -42,7 +44,16 @@ class ScopedPhase {
     (b_.*begin)(p_);
     ran = true;
   }
-  ~ScopedPhase() { (b_.*end_)(p_); }
+  ~ScopedPhase() {
+    if (open_) try {
+        (b_.*end_)(p_);
+      } catch (...) {
+      }
+  }
+  void end() {
+    open_ = false;
+    (b_.*end_)(p_);
+  }
   ScopedPhase(const ScopedPhase&) = delete;
   ScopedPhase& operator=(const ScopedPhase&) = delete;
 
@@ -50,6 +61,7 @@ class ScopedPhase {
   Backend& b_;
   Phase p_;
   void (Backend::*end_)(Phase);
+  bool open_ = true;
 };
 
 }  // namespace
@@ -121,15 +133,17 @@ FrameStats Backend::step(StateHandle in, StateHandle out, const Control& c, cons
     return ScopedPhase(*this, p, &Backend::phase_begin, &Backend::phase_end, ran[static_cast<int>(p)]);
   };
   {
-    const ScopedPhase t = timed(Phase::Snapshot);
+    ScopedPhase t = timed(Phase::Snapshot);
     snapshot();  // X- <- X
+    t.end();
   }
   {
-    const ScopedPhase t = timed(Phase::ChainMail);
+    ScopedPhase t = timed(Phase::ChainMail);
     // Idle frames relax only: propagating would cancel the inertial motion (SPEC §6).
     if (c.deform()) s.propagate = propagate();
     s.relax = relax(params().solver.relax_sweeps);
     s.restore = restore_links();  // every link back in its box
+    t.end();
   }
   s.chainmail_active_bricks = active_bricks();
   // Untimed: the metric is O(N) and measured again only when positions may have changed.
@@ -140,12 +154,14 @@ FrameStats Backend::step(StateHandle in, StateHandle out, const Control& c, cons
     s.link_violation_measured = true;
   }
   {
-    const ScopedPhase t = timed(Phase::Inertia);
+    ScopedPhase t = timed(Phase::Inertia);
     velocity_layer(r.speeds ? &s.speeds : nullptr);  // X+ -> X_{t+1}, V_t; boundary clamp; frame-end snapshot
+    t.end();
   }
   if (r.frame_end_guard) {
-    const ScopedPhase t = timed(Phase::FrameEnd);
+    ScopedPhase t = timed(Phase::FrameEnd);
     s.frame_end = restore_frame_end();  // the fold guard (docs/solver.md, "No fold")
+    t.end();
   }
   s.active_bricks = active_bricks();
   s.active_elements = active_elements();

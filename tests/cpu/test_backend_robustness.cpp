@@ -120,6 +120,31 @@ TEST(CpuBackendRobustness, StepRefusesAStateThatIsNotResident) {
   EXPECT_NO_THROW(a->step(a->resident(), a->resident(), Control{}, FrameRequest{}));
 }
 
+// The frame's named phases are timed by the backend's clock; a phase that did not run reads 0.
+TEST(CpuBackendRobustness, StepTimesItsNamedPhases) {
+  for (const BackendFactory& make : {BackendFactory([] { return make_backend(BackendKind::Cpu); }),
+                                     BackendFactory([] { return gpu::make_emulated_backend(); })}) {
+    const Params p;
+    const Model m = small_phantom(p);
+    auto b = make();
+    b->load(m, p, State::rest(m));
+    const Index g = paper_grab_centre(m);
+    const Control pull({g}, {Vec3{0.0f, -1.0f, 0.0f}}, {kGrabbed}, true);
+    FrameRequest with_guard, without_guard;
+    without_guard.frame_end_guard = false;
+    const FrameStats a = b->step(b->resident(), b->resident(), pull, with_guard);
+    const FrameStats c = b->step(b->resident(), b->resident(), pull, without_guard);
+    for (int ph = 0; ph < kPhaseCount; ++ph) {
+      EXPECT_GE(a.phase_ms[ph], 0.0) << phase_name(static_cast<Phase>(ph));
+      EXPECT_GE(c.phase_ms[ph], 0.0) << phase_name(static_cast<Phase>(ph));
+    }
+    EXPECT_GT(a.phase_ms[static_cast<int>(Phase::ChainMail)], 0.0) << "the wave takes time";
+    EXPECT_GT(a.phase_ms[static_cast<int>(Phase::FrameEnd)], 0.0) << "the guard ran";
+    EXPECT_EQ(c.phase_ms[static_cast<int>(Phase::FrameEnd)], 0.0) << "the guard did not run";
+    EXPECT_GT(a.propagate.sweeps, 0) << "a deformation frame propagates";
+  }
+}
+
 // ---- worker pool: exceptions -------------------------------------------------------------
 
 // Items that take a little time, so that the workers hold items when one throws; `running`
