@@ -1,5 +1,6 @@
 #pragma once
-// The frame pipeline (SPEC §6), written once and driving any Backend:
+// The frame pipeline (SPEC §6) over any Backend: it keeps the grab and the anchors as a
+// Control and calls Backend::step once per frame (docs/architecture.md, "The seam"):
 //   X- <- X;  deform stage (targets, propagate, relax K) while a grab is held, else idle
 //   stage (relax K only, never propagate);  velocity layer -> X_{t+1}; boundary clamp;
 //   frame-end link restoration (the layer's step can fold cells; docs/solver.md, "No fold").
@@ -71,7 +72,8 @@ class Simulation {
 
   const Model& model() const { return model_; }
   const Params& params() const { return params_; }
-  /// Applies new params; rebuilds materials when tissue thresholds or material changed.
+  /// Applies new params; rebuilds materials when tissue thresholds or material changed, and tells
+  /// the backend what changed (Backend::notify_model_changed).
   void set_params(const Params& p);
 
   // --- grab tool (SPEC §4) ---
