@@ -69,7 +69,7 @@ const Setup& setup() {
     // The same wave with the three solvers.
     auto be = make_backend(BackendKind::Cpu);
     be->load(st->model, st->params, st->state19);
-    be->set_fixed(st->grabbed, st->targets, st->flags);
+    be->apply_control(Control(st->grabbed, st->targets, st->flags));
     be->snapshot();
     st->reached_parallel = be->propagate().reached;
     std::vector<Vec3> par;
@@ -107,7 +107,7 @@ void run_parallel(benchmark::State& state, int threads, bool relax) {
   for (auto _ : state) {
     state.PauseTiming();
     be->load(s.model, s.params, s.state19);  // restore the frame-19 state
-    be->set_fixed(s.grabbed, s.targets, s.flags);
+    be->apply_control(Control(s.grabbed, s.targets, s.flags));
     state.ResumeTiming();
     be->snapshot();
     const PropagateStats ps = be->propagate();

@@ -1,9 +1,12 @@
 #pragma once
-// The backend seam: the primitive stages of one frame, implemented once on the CPU (src/cpu)
-// and once in CUDA (src/cuda) from the shared rules of src/solver and src/dynamics. The frame
-// pipeline (simulation.hpp) is written once and calls these in SPEC §6 order for every
-// backend; backend_factory.hpp creates them.
+// The backend seam (docs/architecture.md, "The seam"): a backend holds one state (device
+// memory on CUDA) and steps it one whole frame at a time, step(in, out, control, request), in
+// SPEC §6 order. The order is written once, here (Backend::step, src/core/backend.cpp); the
+// CPU (src/cpu) and the CUDA backend (src/cuda) implement its stages from the shared rules of
+// src/solver and src/dynamics, and a clock for its named phases. backend_factory.hpp creates
+// them.
 #include <array>
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -26,6 +29,88 @@ struct DeviceProbe {
   double copy_gbs() const { return copy_ms > 0 ? copy_bytes / (copy_ms * 1e6) : 0; }
 };
 
+/// What a frame is driven by (Newton's Control): the FIXED set, each element with its target
+/// (displacement from rest) and flags (kGrabbed, kAnchor), and whether the frame is a
+/// deformation frame (a grab is held: the wave propagates) or an idle one. Every change of the
+/// FIXED set gives the control a new revision(): a backend installs a set once, not per frame.
+class Control {
+ public:
+  Control() = default;
+  Control(std::vector<Index> fixed, std::vector<Vec3> targets, std::vector<std::uint8_t> flags, bool deform = true) {
+    set_fixed(std::move(fixed), std::move(targets), std::move(flags));
+    deform_ = deform;
+  }
+  /// Replaces the FIXED set. A duplicate element takes its last entry.
+  void set_fixed(std::vector<Index> fixed, std::vector<Vec3> targets, std::vector<std::uint8_t> flags);
+  void set_deform(bool deform) { deform_ = deform; }
+
+  const std::vector<Index>& fixed() const { return fixed_; }
+  const std::vector<Vec3>& targets() const { return targets_; }
+  const std::vector<std::uint8_t>& flags() const { return flags_; }
+  bool deform() const { return deform_; }
+  /// Unique over every Control of the process (never 0): equal revisions mean the same set.
+  std::uint64_t revision() const { return revision_; }
+
+  /// Throws Error naming the first bad entry and its valid range: the three lists differ in
+  /// length, an element outside [0, m.size() - 1], a flag outside {0, kGrabbed, kAnchor,
+  /// kGrabbed | kAnchor}, a target that is not finite. Backends validate before they change
+  /// anything, so a refused control leaves the old set in force.
+  void validate(const Model& m) const;
+
+ private:
+  std::vector<Index> fixed_;
+  std::vector<Vec3> targets_;
+  std::vector<std::uint8_t> flags_;
+  bool deform_ = false;
+  std::uint64_t revision_ = 0;  ///< 0: the empty set of a default Control (set_fixed gives a new one)
+};
+
+/// What changed in the model or the parameters (flags for Backend::notify_model_changed).
+enum ModelChange : unsigned {
+  kMaterialsChanged = 1,  ///< tissue classes, tolerances, link table (rebuild_materials)
+  kAnchorsChanged = 2,    ///< the anchor mode: every brick is looked at again
+  kParamsChanged = 4,     ///< dynamics, relaxation settings, boundary margin, brick size
+};
+
+/// The named, timed phases of a frame (FrameReport: Snapshot = snapshot, ChainMail = chainmail +
+/// frame_end, Inertia = inertia, SimTotal = their sum).
+enum class Phase : int { Snapshot, ChainMail, Inertia, FrameEnd };
+inline constexpr int kPhaseCount = 4;
+const char* phase_name(Phase p);
+
+/// Per-frame options of Backend::step (what to measure; the Control says what to do).
+struct FrameRequest {
+  bool speeds = true;  ///< reduce per-tissue speeds in the velocity layer
+  /// Measure the largest link violation after the ChainMail stage (O(N), a download on CUDA).
+  bool link_violation = false;
+  /// The caller still holds the value for the positions the frame starts from: it is measured
+  /// again only when the ChainMail stage had work.
+  bool link_violation_known = false;
+  bool frame_end_guard = true;  ///< run the frame-end fold guard (restore_frame_end)
+};
+
+/// What one frame did (Backend::step).
+struct FrameStats {
+  PropagateStats propagate;   ///< zero on idle frames
+  RelaxStats relax;
+  RestoreStats restore;       ///< the ChainMail stage's link restoration
+  RestoreStats frame_end;     ///< the frame-end fold guard (zero when not run)
+  SpeedStats speeds;          ///< filled when requested
+  Index chainmail_active_bricks = 0;  ///< bricks with work after the ChainMail stage
+  Index active_bricks = 0;    ///< bricks that had work in any stage of the frame (the union)
+  Index active_elements = 0;  ///< elements in those bricks
+  bool link_violation_measured = false;
+  float max_link_violation = 0;  ///< when measured
+  std::array<double, kPhaseCount> phase_ms{};  ///< per Phase; 0 for a phase that did not run
+};
+
+/// A state resident on a backend. A backend holds one; step() advances it in place (in == out):
+/// a second state would hold every per-element array twice (docs/architecture.md, "The seam").
+struct StateHandle {
+  const void* backend = nullptr;
+  bool operator==(const StateHandle&) const = default;
+};
+
 enum class BackendKind { Cpu, Cuda };
 const char* backend_name(BackendKind k);
 BackendKind parse_backend(const std::string& s, const std::string& what);
@@ -35,14 +120,32 @@ class Backend {
   virtual ~Backend() = default;
   virtual BackendKind kind() const = 0;
 
-  /// Uploads the model, params and a state (displacements, velocities, flags are taken from it).
-  virtual void load(const Model& m, const Params& p, const State& s) = 0;
-  /// Parameter change that keeps the model (dynamics, relaxation settings).
-  virtual void set_params(const Params& p) = 0;
-  /// The FIXED set for this frame (grab + anchors) with targets (displacements from rest); all
-  /// others are released.
-  virtual void set_fixed(const std::vector<Index>& elements, const std::vector<Vec3>& targets,
-                         const std::vector<std::uint8_t>& flags) = 0;
+  // --- the seam: the pipeline (Simulation) uses these ---
+
+  /// Uploads the model, params and a state (displacements, velocities, flags are taken from it)
+  /// as the resident state; no FIXED set is installed until the next step or apply_control().
+  void load(const Model& m, const Params& p, const State& s) {
+    upload(m, p, s);
+    applied_revision_ = 0;
+  }
+  /// The one reload path: the model the backend was loaded with (same object) or the params
+  /// changed (ModelChange flags). Materials or anchors: the resident state is reloaded with the
+  /// new tables and every brick looked at again; params only: the derived constants change, the
+  /// bricks are checked against the new boundary margin (a new brick size reloads).
+  void notify_model_changed(unsigned changes, const Params& p);
+  /// The state the backend holds.
+  StateHandle resident() const { return StateHandle{this}; }
+  /// One frame in SPEC §6 order: install `c` if its revision is new (validated first), X- <- X,
+  /// propagation on deformation frames, relaxation, link restoration, (the link violation when
+  /// asked), velocity layer, frame-end fold guard. `in` and `out` must both be resident().
+  FrameStats step(StateHandle in, StateHandle out, const Control& c, const FrameRequest& r);
+  /// Installs the FIXED set of `c` (validated first: a refused control changes nothing).
+  void apply_control(const Control& c);
+
+  virtual const Model& model() const = 0;
+  virtual const Params& params() const = 0;
+
+  // --- stage primitives: step() runs them; stage-level tests and benchmarks call them ---
 
   /// X- <- X. May be a no-op when the backend fuses the copy into velocity_layer().
   virtual void snapshot() = 0;
@@ -61,14 +164,12 @@ class Backend {
   /// Fills `speeds` when non-null (only then are speeds reduced).
   virtual void velocity_layer(SpeedStats* speeds) = 0;
 
-  /// Bricks that had work this frame (any stage; 0 when the lattice is idle) and the elements
-  /// in them: what the frame cost follows.
+  /// Bricks that had work since the frame began, in any stage (the union; 0 when the lattice
+  /// is idle), and the elements in them: what the frame cost follows.
   virtual Index active_bricks() const = 0;
   virtual Index active_elements() const = 0;
-  /// Stage timer: mark(k) at stage boundaries, elapsed_ms(a, b) between two marks of the
-  /// current frame (CPU: steady clock; CUDA: events).
-  virtual void mark(int slot) = 0;
-  virtual double elapsed_ms(int from_slot, int to_slot) = 0;
+
+  // --- not the seam: probes and transfers ---
 
   /// Benchmark probe: times `reps` dense passes of the velocity layer over every element and
   /// as many device-to-device copies of the positions, in the same run. The dense passes
@@ -85,6 +186,23 @@ class Backend {
   /// Displacements from rest u = X - X0 (State::disp), linear order.
   virtual void download_displacements(std::vector<Vec3>& disp) = 0;
   virtual Vec3 displacement(Index i) = 0;
+
+ protected:
+  virtual void upload(const Model& m, const Params& p, const State& s) = 0;
+  /// Params changed, the model did not (kParamsChanged alone).
+  virtual void params_changed(const Params& p) = 0;
+  /// Installs a validated FIXED set (grab + anchors); every other element is released.
+  virtual void install_fixed(const Control& c) = 0;
+  /// The frame starts: the activity of the last one is forgotten.
+  virtual void begin_frame() = 0;
+  /// The clock of the named phases (CPU: steady clock; CUDA: events on the backend's stream).
+  virtual void phase_begin(Phase p) = 0;
+  virtual void phase_end(Phase p) = 0;
+  /// Milliseconds between the begin and end of `p` in this frame.
+  virtual double phase_ms(Phase p) = 0;
+
+ private:
+  std::uint64_t applied_revision_ = 0;  ///< of the installed FIXED set; 0: none installed
 };
 
 }  // namespace hpcm

@@ -1,5 +1,6 @@
 #pragma once
-// The frame pipeline (SPEC §6), written once and driving any Backend:
+// The frame pipeline (SPEC §6) over any Backend: it keeps the grab and the anchors as a
+// Control and calls Backend::step once per frame (docs/architecture.md, "The seam"):
 //   X- <- X;  deform stage (targets, propagate, relax K) while a grab is held, else idle
 //   stage (relax K only, never propagate);  velocity layer -> X_{t+1}; boundary clamp;
 //   frame-end link restoration (the layer's step can fold cells; docs/solver.md, "No fold").
@@ -71,7 +72,8 @@ class Simulation {
 
   const Model& model() const { return model_; }
   const Params& params() const { return params_; }
-  /// Applies new params; rebuilds materials when tissue thresholds or material changed.
+  /// Applies new params; rebuilds materials when tissue thresholds or material changed, and tells
+  /// the backend what changed (Backend::notify_model_changed).
   void set_params(const Params& p);
 
   // --- grab tool (SPEC §4) ---
@@ -134,6 +136,7 @@ class Simulation {
   std::vector<Vec3> grab_origin_;
   Index grab_centre_ = -1;
   Vec3 tool_offset_{}, requested_offset_{};
+  Control control_;  ///< the FIXED set (anchors, then the grab) and its targets, given to every step
   std::unique_ptr<solver::ToolLimitSearch> tool_limit_;  ///< of the current grab; null when none
   std::vector<std::uint8_t> anchored_;  ///< per element: anchored at rest (grabbed elements excluded)
   int frame_ = 0;

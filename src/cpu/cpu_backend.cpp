@@ -26,7 +26,7 @@ class StorageAccess final : public solver::RestoreAccess {
 
 }  // namespace
 
-void CpuBackend::load(const Model& m, const Params& p, const State& s) {
+void CpuBackend::upload(const Model& m, const Params& p, const State& s) {
   p.validate();
   if (static_cast<Index>(s.disp.size()) != m.size() || s.vel.size() != s.disp.size() || s.flags.size() != s.disp.size())
     throw Error("CPU backend: state size does not match the model (" + std::to_string(m.size()) + " elements)");
@@ -59,8 +59,7 @@ void CpuBackend::load(const Model& m, const Params& p, const State& s) {
   restorer_.init(m);
 }
 
-void CpuBackend::set_params(const Params& p) {
-  p.validate();
+void CpuBackend::params_changed(const Params& p) {
   const bool bricks_changed = p.solver.brick_size != p_.solver.brick_size;
   p_ = p;
   k_ = dynamics::make_constants(p.dynamics, m_->dims);
@@ -74,21 +73,15 @@ void CpuBackend::set_params(const Params& p) {
   }
 }
 
-void CpuBackend::set_fixed(const std::vector<Index>& elements, const std::vector<Vec3>& targets,
-                           const std::vector<std::uint8_t>& flags) {
-  if (targets.size() != elements.size() || flags.size() != elements.size())
-    throw Error("set_fixed: elements, targets and flags must have the same length");
-  // Validate everything before changing anything: a refused call leaves the old set in force.
-  for (Index e : elements)
-    if (e < 0 || e >= m_->size())
-      throw Error("set_fixed: element " + std::to_string(e) + " is out of range [0, " + std::to_string(m_->size() - 1) +
-                  "]");
+void CpuBackend::install_fixed(const Control& c) {
+  const std::vector<Index>& elements = c.fixed();
+  const std::vector<std::uint8_t>& flags = c.flags();
   const Layout& L = st_.lay;
   for (Index i : fixed_) st_.flags[static_cast<std::size_t>(L.at(i))] = 0;
   std::vector<Index> old;
   old.swap(fixed_);
   fixed_ = elements;
-  targets_ = targets;
+  targets_ = c.targets();
   for (std::size_t k = 0; k < fixed_.size(); ++k) {
     st_.flags[static_cast<std::size_t>(L.at(fixed_[k]))] = static_cast<std::uint8_t>(kFixed | flags[k]);
   }
@@ -187,15 +180,6 @@ Index CpuBackend::active_elements() const {
       n += static_cast<Index>(hi.x - lo.x) * (hi.y - lo.y) * (hi.z - lo.z);
     }
   return n;
-}
-
-void CpuBackend::mark(int slot) {
-  if (slot == 0) std::fill(worked_.begin(), worked_.end(), 0);
-  marks_[slot] = std::chrono::steady_clock::now();
-}
-
-double CpuBackend::elapsed_ms(int a, int b) {
-  return std::chrono::duration<double, std::milli>(marks_[b] - marks_[a]).count();
 }
 
 }  // namespace hpcm::cpu

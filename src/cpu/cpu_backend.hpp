@@ -9,6 +9,8 @@
 // that none of these mark and that carries no velocity sleeps: it costs nothing, and wakes when
 // the wave, a relaxation sweep next door or the tool reaches it. X- is kept equal to X between
 // frames by the layer's fused frame-end snapshot, so snapshot() has nothing left to copy.
+// Backend::step runs the stages in frame order; the phases are timed by the steady clock.
+#include <algorithm>
 #include <chrono>
 #include <memory>
 
@@ -26,10 +28,8 @@ namespace hpcm::cpu {
 class CpuBackend final : public Backend {
  public:
   BackendKind kind() const override { return BackendKind::Cpu; }
-  void load(const Model& m, const Params& p, const State& s) override;
-  void set_params(const Params& p) override;
-  void set_fixed(const std::vector<Index>& elements, const std::vector<Vec3>& targets,
-                 const std::vector<std::uint8_t>& flags) override;
+  const Model& model() const override { return *m_; }
+  const Params& params() const override { return p_; }
   void snapshot() override {}
   PropagateStats propagate() override;
   RelaxStats relax(int sweeps) override;
@@ -38,8 +38,6 @@ class CpuBackend final : public Backend {
   void velocity_layer(SpeedStats* speeds) override;
   Index active_bricks() const override;
   Index active_elements() const override;
-  void mark(int slot) override;
-  double elapsed_ms(int from_slot, int to_slot) override;
   void download(State& s) override { st_.store_state(s, *pool_); }
   void download_displacements(std::vector<Vec3>& disp) override { st_.store_displacements(disp, *pool_); }
   Vec3 displacement(Index i) override { return st_.displacement(i); }
@@ -52,6 +50,18 @@ class CpuBackend final : public Backend {
   int threads() const override { return pool_ ? pool_->threads() : 1; }
   /// Bytes per element of the backend's arrays (the model's table and per-brick data excluded).
   static std::size_t bytes_per_element() { return Storage::bytes_per_element(); }
+
+ protected:
+  void upload(const Model& m, const Params& p, const State& s) override;
+  void params_changed(const Params& p) override;
+  void install_fixed(const Control& c) override;
+  void begin_frame() override { std::fill(worked_.begin(), worked_.end(), 0); }
+  void phase_begin(Phase p) override { phase_[static_cast<int>(p)][0] = std::chrono::steady_clock::now(); }
+  void phase_end(Phase p) override { phase_[static_cast<int>(p)][1] = std::chrono::steady_clock::now(); }
+  double phase_ms(Phase p) override {
+    const auto& t = phase_[static_cast<int>(p)];
+    return std::chrono::duration<double, std::milli>(t[1] - t[0]).count();
+  }
 
  private:
   void mark_all(std::vector<std::uint8_t>& flags) { std::fill(flags.begin(), flags.end(), 1); }
@@ -79,7 +89,7 @@ class CpuBackend final : public Backend {
   std::vector<std::uint8_t> fold_bricks_;  ///< frame end: bricks with a + link outside its fold box
   std::string forced_kernel_;
   const char* kernel_name_ = "";
-  std::chrono::steady_clock::time_point marks_[8];
+  std::chrono::steady_clock::time_point phase_[kPhaseCount][2];  ///< begin and end of each Phase
 };
 
 }  // namespace hpcm::cpu

@@ -52,7 +52,7 @@ void Storage::load(const Model& m, const State& s, WorkerPool& pool) {
     weight[k] = solver::relax_weight(m.tau[u]);
     tissue[k] = m.tissue[u];
     stat_class[k] = m.counted(static_cast<Index>(u)) ? m.tissue[u] : kTissueCount;
-    flags[k] = (s.flags[u] & kFixed) ? 0 : s.flags[u];  // the FIXED set is given per frame (set_fixed)
+    flags[k] = (s.flags[u] & kFixed) ? 0 : s.flags[u];  // the FIXED set comes with the Control (install_fixed)
   });
 }
 

@@ -287,10 +287,10 @@ class GpuExec {
     std::vector<double> t;
     sync();
     for (int r = 0; r <= reps; ++r) {  // r = 0: warm-up
-      HPCM_CUDA(cudaEventRecord(ev_[6], stream_));
+      HPCM_CUDA(cudaEventRecord(ev_[kProbeBegin], stream_));
       layer(a);
-      HPCM_CUDA(cudaEventRecord(ev_[7], stream_));
-      const double ms = elapsed(6, 7);
+      HPCM_CUDA(cudaEventRecord(ev_[kProbeEnd], stream_));
+      const double ms = elapsed(kProbeBegin, kProbeEnd);
       if (r > 0) t.push_back(ms);
     }
     p.layer_ms = median(t);
@@ -299,10 +299,10 @@ class GpuExec {
     t.clear();
     try {
       for (int r = 0; r <= reps; ++r) {
-        HPCM_CUDA(cudaEventRecord(ev_[6], stream_));
+        HPCM_CUDA(cudaEventRecord(ev_[kProbeBegin], stream_));
         copy(tmp, a.L.disp, bytes);
-        HPCM_CUDA(cudaEventRecord(ev_[7], stream_));
-        const double ms = elapsed(6, 7);
+        HPCM_CUDA(cudaEventRecord(ev_[kProbeEnd], stream_));
+        const double ms = elapsed(kProbeBegin, kProbeEnd);
         if (r > 0) t.push_back(ms);
       }
     } catch (...) {
@@ -346,7 +346,9 @@ class GpuExec {
   int dev_ = 0, sms_ = 1;
   std::string name_;
   cudaStream_t stream_ = nullptr;
-  cudaEvent_t ev_[8] = {};
+  // Events 0-7: the frame's phases (two per Phase, DeviceBackend::phase_begin); 8-9: the probe.
+  static constexpr int kProbeBegin = 2 * kPhaseCount, kProbeEnd = 2 * kPhaseCount + 1;
+  cudaEvent_t ev_[2 * kPhaseCount + 2] = {};
   std::map<int, cudaGraphExec_t> graphs_;
 };
 

@@ -68,7 +68,11 @@ class DeviceBackend final : public Backend {
   Index restore_bricks_copied() const { return cache_fetched_; }
   Index restore_cache_misses() const { return cache_misses_; }
 
-  void load(const Model& m, const Params& p, const State& s) override {
+  const Model& model() const override { return *m_; }
+  const Params& params() const override { return p_; }
+
+ protected:
+  void upload(const Model& m, const Params& p, const State& s) override {
     p.validate();
     const Index n = m.size();
     if (static_cast<Index>(s.disp.size()) != n || static_cast<Index>(s.vel.size()) != n ||
@@ -112,6 +116,7 @@ class DeviceBackend final : public Backend {
     L_.wave = alloc<std::uint8_t>(NB, "brick flags");
     L_.unchecked = alloc<std::uint8_t>(NB, "brick flags");
     L_.speed = alloc<float>(NB, "brick speeds");
+    L_.worked = alloc<std::uint8_t>(NB, "brick flags");
     save_touched_ = alloc<std::uint8_t>(NB, "brick flags");
     save_hot_ = alloc<std::uint8_t>(NB, "brick flags");
     relax_list_ = alloc<int>(NB, "relaxation brick list");
@@ -159,6 +164,7 @@ class DeviceBackend final : public Backend {
     x_.zero(L_.has_vel, NB);
     x_.zero(L_.speed, NB * sizeof(float));
     x_.zero(L_.wave, NB);
+    x_.zero(L_.worked, NB);
     std::vector<std::uint8_t> all(NB, 1);
     x_.upload(L_.unchecked, all.data(), NB);  // a loaded state is checked once
     x_.zero(ctl_, sizeof(Ctl));
@@ -171,14 +177,14 @@ class DeviceBackend final : public Backend {
     delta_ = solver::bucket_width(m);
     fixed_.clear();
     n_fixed_dev_ = 0;
-    active_ = 0;
+    active_ = active_elements_ = 0;
+    activity_known_ = true;
     layer_pending_ = false;
     x_.invalidate();
     x_.sync();
   }
 
-  void set_params(const Params& p) override {
-    p.validate();
+  void params_changed(const Params& p) override {
     const bool bricks_changed = p.solver.brick_size != p_.solver.brick_size;
     p_ = p;
     k_ = dynamics::make_constants(p.dynamics, m_->dims);
@@ -195,16 +201,10 @@ class DeviceBackend final : public Backend {
     }
   }
 
-  void set_fixed(const std::vector<Index>& elements, const std::vector<Vec3>& targets,
-                 const std::vector<std::uint8_t>& flags) override {
-    if (targets.size() != elements.size() || flags.size() != elements.size())
-      throw Error("set_fixed: elements, targets and flags must have the same length");
-    // Validate everything before changing anything (seen_ included): a refused call leaves the
-    // old set in force.
-    for (Index e : elements)
-      if (e < 0 || e >= L_.n)
-        throw Error("set_fixed: element " + std::to_string(e) + " is out of range [0, " + std::to_string(L_.n - 1) +
-                    "]");
+  void install_fixed(const Control& c) override {
+    const std::vector<Index>& elements = c.fixed();
+    const std::vector<Vec3>& targets = c.targets();
+    const std::vector<std::uint8_t>& flags = c.flags();
     // Duplicates (an anchor that is also grabbed): the last occurrence wins, as on the CPU.
     std::vector<int> idx;
     std::vector<Vec3> tg;
@@ -242,6 +242,18 @@ class DeviceBackend final : public Backend {
     fixed_ = std::move(idx);
   }
 
+  void begin_frame() override {
+    settle_layer();  // the last frame's layer statistics have arrived
+    x_.zero(L_.worked, static_cast<std::size_t>(L_.grid.count));
+    active_ = active_elements_ = 0;
+    activity_known_ = true;
+  }
+  /// Phase p is timed between events 2p and 2p + 1 of the executor (CUDA events on the stream).
+  void phase_begin(Phase p) override { x_.mark(2 * static_cast<int>(p)); }
+  void phase_end(Phase p) override { x_.mark(2 * static_cast<int>(p) + 1); }
+  double phase_ms(Phase p) override { return x_.elapsed(2 * static_cast<int>(p), 2 * static_cast<int>(p) + 1); }
+
+ public:
   void snapshot() override {}  // fused into velocity_layer(): X- == X between frames
 
   PropagateStats propagate() override {
@@ -298,7 +310,7 @@ class DeviceBackend final : public Backend {
     st.sweeps = host_ctl_->prop.sweeps;
     st.converged = host_ctl_->prop.converged != 0;
     st.reached = host_ctl_->prop.reached;
-    active_ = std::max<Index>(active_, host_ctl_->prop.active);
+    activity_known_ = false;
     return st;
   }
 
@@ -326,6 +338,7 @@ class DeviceBackend final : public Backend {
     x_.zero(ca.found, sizeof(int));
     x_.zero(ca.bricks, NB);
     x_.check_links(ca);
+    activity_known_ = false;  // the checked bricks had work
     // The frame-end guard leaves the bricks unchecked: the next ChainMail stage still holds every
     // link the velocity layer moved to its box.
     if (!frame_end) x_.zero(L_.unchecked, NB);
@@ -388,7 +401,7 @@ class DeviceBackend final : public Backend {
     x_.sync();
     st.sweeps = host_ctl_->relax.sweeps;
     st.max_correction = host_ctl_->relax.last_max;
-    active_ = std::max<Index>(active_, host_ctl_->relax.active_max);
+    activity_known_ = false;
     return st;
   }
 
@@ -399,10 +412,10 @@ class DeviceBackend final : public Backend {
     if (speeds) x_.speed_sum(a);
     x_.download(&host_ctl_->layer, &ctl_->layer, sizeof(LayerCtl));
     layer_pending_ = true;
+    activity_known_ = false;
     if (speeds) {
       x_.sync();
       layer_pending_ = false;
-      active_ = std::max<Index>(active_, host_ctl_->layer.count);
       SpeedStats out;
       for (int t = 0; t < kTissueCount; ++t) {
         out.sum[t] = host_ctl_->layer.sum[t];
@@ -413,30 +426,16 @@ class DeviceBackend final : public Backend {
     }
   }
 
+  /// The bricks some stage worked on since the frame began (their union, counted on the host
+  /// from the device's per-brick flags, as CpuBackend counts its own) and the elements in them.
   Index active_bricks() const override {
-    if (layer_pending_) {
-      auto* self = const_cast<DeviceBackend*>(this);
-      self->x_.sync();
-      self->layer_pending_ = false;
-      self->active_ = std::max<Index>(active_, host_ctl_->layer.count);
-    }
+    const_cast<DeviceBackend*>(this)->settle_activity();
     return active_;
   }
-  /// Elements of the active bricks, counted as full bricks (the largest count of any stage).
   Index active_elements() const override {
-    const Index b = active_bricks();
-    return std::min<Index>(L_.n, b * L_.grid.size * L_.grid.size * L_.grid.size);
+    const_cast<DeviceBackend*>(this)->settle_activity();
+    return active_elements_;
   }
-
-  void mark(int slot) override {
-    if (slot < 0 || slot >= 8) throw Error("mark: slot " + std::to_string(slot) + " is out of range [0, 7]");
-    if (slot == 0) {
-      active_bricks();  // settle the previous frame's count
-      active_ = 0;
-    }
-    x_.mark(slot);
-  }
-  double elapsed_ms(int a, int b) override { return x_.elapsed(a, b); }
 
   DeviceProbe probe(int reps) override {
     if (reps < 1) reps = 1;
@@ -470,6 +469,29 @@ class DeviceBackend final : public Backend {
   }
 
  private:
+  /// Waits for the velocity layer's statistics (queued without a wait when no speeds were asked).
+  void settle_layer() {
+    if (!layer_pending_) return;
+    x_.sync();
+    layer_pending_ = false;
+  }
+  void settle_activity() {
+    if (activity_known_) return;
+    const std::size_t NB = static_cast<std::size_t>(L_.grid.count);
+    worked_host_.resize(NB);
+    x_.download(worked_host_.data(), L_.worked, NB);
+    x_.sync();
+    layer_pending_ = false;
+    active_ = active_elements_ = 0;
+    for (std::size_t b = 0; b < NB; ++b)
+      if (worked_host_[b]) {
+        Int3 lo, hi;
+        L_.grid.range(static_cast<Index>(b), lo, hi);
+        ++active_;
+        active_elements_ += static_cast<Index>(hi.x - lo.x) * (hi.y - lo.y) * (hi.z - lo.z);
+      }
+    activity_known_ = true;
+  }
   template <class T>
   T* alloc(std::size_t count, const char* what) {
     const std::size_t bytes = std::max<std::size_t>(count, 1) * sizeof(T);
@@ -766,7 +788,9 @@ class DeviceBackend final : public Backend {
   int fixed_cap_ = 0, cur_fixed_ = 0, n_fixed_dev_ = 0;
   std::vector<int> fixed_;
   std::vector<std::uint8_t> seen_;
-  Index active_ = 0;
+  Index active_ = 0, active_elements_ = 0;  ///< of L_.worked, when activity_known_
+  bool activity_known_ = true;
+  std::vector<std::uint8_t> worked_host_;
   bool layer_pending_ = false;
   int pend_override_ = 0, list_override_ = 0, regrowths_ = 0;
 };

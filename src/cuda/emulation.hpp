@@ -130,7 +130,7 @@ class EmuExec {
 
  private:
   int blocks_;
-  std::chrono::steady_clock::time_point marks_[8];
+  std::chrono::steady_clock::time_point marks_[2 * kPhaseCount + 2];  ///< as GpuExec's events
 };
 
 /// The CUDA backend's algorithm on the host (for tests).

@@ -123,6 +123,8 @@ struct Lattice {
   std::uint8_t* wave = nullptr;     ///< holds elements with a finite time of the last wave
   std::uint8_t* unchecked = nullptr;  ///< positions changed since the last link check (restoration)
   float* speed = nullptr;             ///< largest |V| (before the clamp) of the brick's last visit
+  /// Some stage worked on it this frame (the active bricks are their union, as on the CPU).
+  std::uint8_t* worked = nullptr;
 
   HPCM_HD long long index(int x, int y, int z) const { return x + static_cast<long long>(nx) * (y + static_cast<long long>(ny) * z); }
   HPCM_HD void coords(long long i, int& x, int& y, int& z) const {
@@ -183,7 +185,7 @@ HPCM_HD void set_fixed_block(const FixedArgs& a, B& blk) {
   blk.each([&](int tid) {
     for (int j = tid; j < a.n; j += T) a.L.flags[a.fixed[j]] = static_cast<std::uint8_t>(kFixed | a.fflags[j]);
   });
-  // Elements released from FIXED must be relaxed again (as CpuBackend::set_fixed does).
+  // Elements released from FIXED must be relaxed again (as CpuBackend::install_fixed does).
   blk.each([&](int tid) {
     for (int j = tid; j < a.n_old; j += T) {
       const long long i = a.old_fixed[j];
@@ -462,9 +464,11 @@ HPCM_HD inline void full_reset_element(const Lattice& L, long long i) {
   if (!(L.flags[i] & kFixed)) L.disp[i] = L.pre[i];
 }
 
-/// Touched bricks after the wave (reported as active bricks), thread per brick.
+/// Touched bricks after the wave (they had work), thread per brick.
 HPCM_HD inline void count_touched_thread(const Lattice& L, long long b, PropCtl* ctl) {
-  if (L.touched[b]) at_add(&ctl->active, 1);
+  if (!L.touched[b]) return;
+  at_add(&ctl->active, 1);
+  L.worked[b] = 1;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -539,7 +543,9 @@ HPCM_HD inline void relax_list_thread(const RelaxArgs& a, int p, long long b) {
   else
     on = a.phase[(p - 2) % 3][b] || g.flagged_or_face_neighbour(a.phase[(p - 1) % 3], b);
   if (p >= 2) a.phase[p % 3][b] = 0;  // held phase p - 3, no longer needed
-  if (on) a.list[at_add(&a.ctl->count[p], 1)] = static_cast<int>(b);
+  if (!on) return;
+  a.list[at_add(&a.ctl->count[p], 1)] = static_cast<int>(b);
+  a.L.worked[b] = 1;
 }
 
 /// Phase p over the listed bricks (blocks stride over the list). Elements of one colour only
@@ -646,6 +652,9 @@ template <class B>
 HPCM_HD void check_links_block(const CheckArgs& a, long long b, B& blk) {
   const Lattice& L = a.L;
   if (!L.grid.flagged_or_face_neighbour(L.unchecked, b) && !L.grid.flagged_or_face_neighbour(L.touched, b)) return;
+  blk.each([&](int tid) {
+    if (tid == 0) L.worked[b] = 1;  // checked: work, as on the CPU
+  });
   int lo[3], hi[3];
   L.brick_range(b, lo, hi);
   const int bs = L.grid.size, per = bs * bs * bs;
@@ -856,6 +865,7 @@ HPCM_HD void layer_block(const LayerArgs& a, long long b, LayerShared& sh, B& bl
       L.speed[b] = bits_float(sh.vmax);
       if (sh.moved) L.hot[b] = L.unchecked[b] = 1;
       L.touched[b] = 0;
+      L.worked[b] = 1;
       at_add(&a.ctl->count, 1);
       if (a.speeds) {
         for (int t = 0; t < kTissueCount; ++t) {

@@ -18,6 +18,17 @@ namespace hpcm {
 
 namespace {
 std::string fmt_number(double v) { return detail::format_number(v); }
+
+/// The tissue classes or the material table differ: the model's classes and links change.
+bool materials_differ(const Params& a, const Params& b) {
+  if (a.tissue.t1 != b.tissue.t1 || a.tissue.t2 != b.tissue.t2 || a.tissue.t3 != b.tissue.t3) return true;
+  if (a.material.points.size() != b.material.points.size()) return true;
+  for (std::size_t k = 0; k < a.material.points.size(); ++k) {
+    const auto &x = a.material.points[k], &y = b.material.points[k];
+    if (x.hu != y.hu || x.tau != y.tau || x.w != y.w) return true;
+  }
+  return false;
+}
 }  // namespace
 
 void check_grab_radius(float radius, const std::string& what) {
@@ -52,32 +63,19 @@ Simulation::~Simulation() = default;
 
 void Simulation::set_params(const Params& p) {
   p.validate();
-  const bool materials = p.tissue.t1 != params_.tissue.t1 || p.tissue.t2 != params_.tissue.t2 ||
-                         p.tissue.t3 != params_.tissue.t3 || p.material.points.size() != params_.material.points.size() ||
-                         [&] {
-                           for (std::size_t k = 0; k < p.material.points.size(); ++k) {
-                             const auto &a = p.material.points[k], &b = params_.material.points[k];
-                             if (a.hu != b.hu || a.tau != b.tau || a.w != b.w) return true;
-                           }
-                           return false;
-                         }();
-  const bool anchors = p.solver.anchors != params_.solver.anchors;
+  unsigned changes = kParamsChanged;
+  if (materials_differ(p, params_)) changes |= kMaterialsChanged;
+  if (p.solver.anchors != params_.solver.anchors) changes |= kAnchorsChanged;
   params_ = p;
-  if (materials || anchors) {
-    // New classes / links: keep the current state, rebuild the model and reload.
-    const State s = state();
-    tool_limit_.reset();  // it reads the model's links, which change now
-    if (materials) rebuild_materials(model_, params_);
-    backend_->load(model_, params_, s);
-    ++positions_version_;
-    compute_anchors();
-    compute_tool_limit();
-    move_tool(requested_offset_);
-  } else {
-    backend_->set_params(params_);
-    compute_tool_limit();  // the boundary margin may have changed
-    move_tool(requested_offset_);
+  tool_limit_.reset();  // it reads the model's links and the margin, which may change now
+  if (changes & kMaterialsChanged) rebuild_materials(model_, params_);
+  backend_->notify_model_changed(changes, params_);
+  if (changes & (kMaterialsChanged | kAnchorsChanged)) {
+    ++positions_version_;  // reloaded
+    compute_anchors();     // bone anchors follow the classes
   }
+  compute_tool_limit();
+  move_tool(requested_offset_);
 }
 
 void Simulation::reset() {
@@ -202,7 +200,10 @@ void Simulation::push_fixed() {
     targets.push_back(grab_origin_[k] + tool_offset_);
     flags.push_back(kGrabbed);
   }
-  backend_->set_fixed(idx, targets, flags);
+  control_.set_fixed(std::move(idx), std::move(targets), std::move(flags));
+  // Installed now rather than by the next step (which finds it installed): state() shows the
+  // new flags at once.
+  backend_->apply_control(control_);
 }
 
 const std::vector<Vec3>& Simulation::frame_end_displacements() {
@@ -252,51 +253,32 @@ FrameReport Simulation::step(const StepOptions& opt) {
   r.grab_offset_mm = r.deform ? offset_length_mm(model_, tool_offset_) : 0.0;
   r.requested_offset_mm = r.deform ? offset_length_mm(model_, requested_offset_) : 0.0;
   r.tool_limited = r.deform && tool_limited();
-  Backend& b = *backend_;
-  b.mark(0);
-  b.snapshot();  // X- <- X
-  b.mark(1);
-  if (r.deform) {  // deformation stage: targets, propagate, relax
-    const PropagateStats ps = b.propagate();
-    r.propagate_sweeps = ps.sweeps;
-    r.propagate_converged = ps.converged;
-  }
-  // Idle stage: relax only. Propagating here would cancel the inertial motion (SPEC §6).
-  r.relax_sweeps = b.relax(params_.solver.relax_sweeps).sweeps;
-  const RestoreStats rs = b.restore_links();  // every link back in its box
-  r.restored_links = rs.violated_links;
-  r.restore_violation = rs.max_violation;
-  r.restore_converged = !rs.capped;
-  b.mark(2);
+  control_.set_deform(r.deform);
+  FrameRequest req;
+  req.speeds = opt.speeds;
+  req.link_violation = opt.link_violation;
+  req.link_violation_known = link_metric_.version == positions_version_;
+  req.frame_end_guard = frame_end_restore_;
+  const FrameStats fs = backend_->step(backend_->resident(), backend_->resident(), control_, req);
+  r.propagate_sweeps = fs.propagate.sweeps;
+  r.propagate_converged = fs.propagate.converged;
+  r.relax_sweeps = fs.relax.sweeps;
+  r.restored_links = fs.restore.violated_links;
+  r.restore_violation = fs.restore.max_violation;
   // The integrity metrics are O(N): measured again only when positions may have changed
   // (some brick had work), else the last values hold exactly.
-  const Index active_chainmail = b.active_bricks();
-  if (active_chainmail > 0) ++positions_version_;
-  if (opt.link_violation) {
-    if (link_metric_.version != positions_version_) {
-      std::vector<Vec3> disp;
-      b.download_displacements(disp);
-      link_metric_ = {positions_version_, max_link_violation(model_, disp), 0};
-    }
-    r.max_link_violation = link_metric_.value;
-  }
-  b.mark(3);
-  SpeedStats sp;
-  b.velocity_layer(opt.speeds ? &sp : nullptr);  // X+ -> X_{t+1}, V_t; boundary clamp; frame-end snapshot
-  b.mark(4);
-  if (frame_end_restore_) {
-    // The layer moves neighbours by different steps (V differs by class, dead zone, clamp,
-    // FIXED neighbours) and the boundary clamp flattens: links leave their boxes and cells can
-    // fold. The fold guard unfolds such cells (links around them back in their boxes) and
-    // leaves every other element where the layer put it, so the swing is the layer's.
-    const RestoreStats end = b.restore_frame_end();
-    r.end_folded_cells = end.violated_links;
-    r.end_guard_moved = end.moved;
-    r.restore_converged = r.restore_converged && !end.capped;
-    if (end.moved > 0) ++positions_version_;
-  }
-  b.mark(5);
-  if (b.active_bricks() > active_chainmail) ++positions_version_;
+  if (fs.chainmail_active_bricks > 0) ++positions_version_;
+  if (fs.link_violation_measured) link_metric_ = {positions_version_, fs.max_link_violation, 0};
+  if (opt.link_violation) r.max_link_violation = link_metric_.value;
+  // The layer moves neighbours by different steps (V differs by class, dead zone, clamp, FIXED
+  // neighbours) and the boundary clamp flattens: the fold guard unfolds the cells the layer
+  // folded and leaves every other element where the layer put it, so the swing is the layer's.
+  r.end_folded_cells = fs.frame_end.violated_links;
+  r.end_guard_moved = fs.frame_end.moved;
+  r.restore_converged = !fs.restore.capped && !fs.frame_end.capped;
+  if (fs.frame_end.moved > 0) ++positions_version_;
+  if (fs.active_bricks > fs.chainmail_active_bricks) ++positions_version_;
+  SpeedStats sp = fs.speeds;
   if (host_speeds && r.end_guard_moved > 0) sp = speeds_between(model_, previous_end_, frame_end_displacements());
   if (opt.cell_jacobian) {
     if (jacobian_metric_.version != positions_version_) {
@@ -306,12 +288,13 @@ FrameReport Simulation::step(const StepOptions& opt) {
     r.min_cell_jacobian = jacobian_metric_.value;
     r.folded_cells = jacobian_metric_.count;
   }
-  r.snapshot_ms = b.elapsed_ms(0, 1);
-  r.chainmail_ms = b.elapsed_ms(1, 2) + b.elapsed_ms(4, 5);  // the frame-end restoration is ChainMail work
-  r.inertia_ms = b.elapsed_ms(3, 4);
+  const auto ms = [&](Phase p) { return fs.phase_ms[static_cast<int>(p)]; };
+  r.snapshot_ms = ms(Phase::Snapshot);
+  r.chainmail_ms = ms(Phase::ChainMail) + ms(Phase::FrameEnd);  // the frame-end guard is ChainMail work
+  r.inertia_ms = ms(Phase::Inertia);
   r.sim_total_ms = r.snapshot_ms + r.chainmail_ms + r.inertia_ms;
-  r.active_bricks = b.active_bricks();
-  r.active_elements = b.active_elements();
+  r.active_bricks = fs.active_bricks;
+  r.active_elements = fs.active_elements;
   if (opt.speeds) {
     r.moved_elements = sp.moved;
     const auto& count = model_.counted_class_count;  // the body's elements (every element without one)

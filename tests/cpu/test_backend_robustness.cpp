@@ -1,4 +1,4 @@
-// Robustness of the CPU backend (issue 29): a refused set_fixed changes nothing, an exception
+// Robustness of the CPU backend (issues 29, 34): a refused control changes nothing, an exception
 // in a worker-pool job reaches the caller only after every thread has left the job, and the
 // propagation's storage stays bounded over the whole valid range of the link penalty w.
 #include <gtest/gtest.h>
@@ -7,6 +7,7 @@
 #include <atomic>
 #include <chrono>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <stdexcept>
 #include <thread>
@@ -33,11 +34,38 @@ void pull(Simulation& sim, int frames) {
   for (int f = 0; f < frames; ++f) sim.step();
 }
 
-// ---- set_fixed: validate, then change -------------------------------------------------------
+// ---- Control: validate, then change ------------------------------------------------------
 
 using BackendFactory = std::function<std::unique_ptr<Backend>()>;
 
-void expect_refused_set_fixed_changes_nothing(const BackendFactory& make) {
+struct BadControl {
+  std::string what;      ///< the case
+  Control control;
+  std::string message;   ///< must appear in the error
+};
+
+/// Refused controls beside two grabbed elements: an element out of range (first: the device
+/// backend reads the list from the end), a flag that is the backend's own, a NaN and an infinite
+/// target, lists of different lengths.
+std::vector<BadControl> bad_controls(const Model& m, Index g0, Index g1) {
+  const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
+  const std::vector<Index> two{g0, g1};
+  const std::vector<std::uint8_t> grabbed(2, kGrabbed);
+  const std::string n = std::to_string(m.size());
+  return {
+      {"element out of range", Control({m.size(), g0, g1}, {Vec3{}, Vec3{}, Vec3{}}, {0, kGrabbed, kGrabbed}),
+       "element " + n + " is out of range [0, " + std::to_string(m.size() - 1) + "]"},
+      {"negative element", Control({g0, -1}, {Vec3{}, Vec3{}}, grabbed), "element -1 is out of range [0, "},
+      {"flag kFixed", Control(two, {Vec3{}, Vec3{}}, {kGrabbed, kFixed | kGrabbed}),
+       "flags 3 are not one of 0, 2 (grabbed), 4 (anchor), 6 (both)"},
+      {"NaN target", Control(two, {Vec3{0.0f, -2.0f, 0.0f}, Vec3{0.0f, nan, 0.0f}}, grabbed),
+       "entry 1 (element " + std::to_string(g1) + "): target (0, nan, 0) is not finite"},
+      {"infinite target", Control(two, {Vec3{inf, 0.0f, 0.0f}, Vec3{}}, grabbed), "target (inf, 0, 0) is not finite"},
+      {"lengths differ", Control(two, {Vec3{}}, grabbed), "2 elements but 1 targets and 2 flags"},
+  };
+}
+
+void expect_refused_control_changes_nothing(const BackendFactory& make) {
   const Params p;
   const Model m = small_phantom(p);
   Simulation reference(m, p, make()), sim(m, p, make());
@@ -45,38 +73,76 @@ void expect_refused_set_fixed_changes_nothing(const BackendFactory& make) {
     s->grab(paper_grab_centre(s->model()));
     pull(*s, 2);
   }
-  // A list with an element out of range (first: the device backend reads the list from the
-  // end) beside two grabbed ones: refused, naming the element and the range.
-  const Index g0 = sim.grabbed().at(0), g1 = sim.grabbed().at(1);
-  const std::vector<Index> elements{m.size(), g0, g1};
-  const std::vector<Vec3> targets{Vec3{}, Vec3{}, Vec3{}};
-  const std::vector<std::uint8_t> flags(3, 0);
-  try {
-    sim.backend().set_fixed(elements, targets, flags);
-    FAIL() << "an out-of-range element was accepted";
-  } catch (const Error& e) {
-    const std::string msg = e.what();
-    EXPECT_NE(msg.find("element " + std::to_string(m.size()) + " is out of range [0, " + std::to_string(m.size() - 1) + "]"),
-              std::string::npos)
-        << msg;
+  for (const BadControl& bad : bad_controls(m, sim.grabbed().at(0), sim.grabbed().at(1))) {
+    SCOPED_TRACE(bad.what);
+    Backend& b = sim.backend();
+    for (bool through_step : {false, true}) {
+      try {
+        if (through_step)
+          b.step(b.resident(), b.resident(), bad.control, FrameRequest{});
+        else
+          b.apply_control(bad.control);
+        ADD_FAILURE() << "the control was accepted";
+      } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find(bad.message), std::string::npos) << e.what();
+      }
+    }
   }
   // The backend's next wave runs with the grab still in force, exactly as without the refused
-  // call; so do the next frames.
+  // calls; so do the next frames.
   for (Simulation* s : {&reference, &sim}) s->backend().propagate();
-  EXPECT_TRUE(sim.state().disp == reference.state().disp) << "positions differ from the run without the refused call";
-  EXPECT_TRUE(sim.state().flags == reference.state().flags) << "flags differ from the run without the refused call";
+  EXPECT_TRUE(sim.state().disp == reference.state().disp) << "positions differ from the run without the refused calls";
+  EXPECT_TRUE(sim.state().flags == reference.state().flags) << "flags differ from the run without the refused calls";
   for (Simulation* s : {&reference, &sim}) pull(*s, 3);
-  EXPECT_TRUE(sim.state().disp == reference.state().disp) << "positions differ from the run without the refused call";
-  EXPECT_TRUE(sim.state().flags == reference.state().flags) << "flags differ from the run without the refused call";
+  EXPECT_TRUE(sim.state().disp == reference.state().disp) << "positions differ from the run without the refused calls";
+  EXPECT_TRUE(sim.state().vel == reference.state().vel) << "velocities differ from the run without the refused calls";
+  EXPECT_TRUE(sim.state().flags == reference.state().flags) << "flags differ from the run without the refused calls";
 }
 
-TEST(CpuBackendRobustness, RefusedSetFixedKeepsTheOldFixedSet) {
-  expect_refused_set_fixed_changes_nothing([] { return make_backend(BackendKind::Cpu); });
+TEST(CpuBackendRobustness, RefusedControlKeepsTheOldFixedSet) {
+  expect_refused_control_changes_nothing([] { return make_backend(BackendKind::Cpu); });
 }
 
 // The CUDA backend's host side (device_backend.hpp) under the host emulation: same order.
-TEST(CpuBackendRobustness, RefusedSetFixedKeepsTheOldFixedSetOnTheDeviceBackend) {
-  expect_refused_set_fixed_changes_nothing([] { return gpu::make_emulated_backend(); });
+TEST(CpuBackendRobustness, RefusedControlKeepsTheOldFixedSetOnTheDeviceBackend) {
+  expect_refused_control_changes_nothing([] { return gpu::make_emulated_backend(); });
+}
+
+// A backend holds one state and steps it in place: another backend's state is refused.
+TEST(CpuBackendRobustness, StepRefusesAStateThatIsNotResident) {
+  const Params p;
+  const Model m = small_phantom(p);
+  auto a = make_backend(BackendKind::Cpu), b = make_backend(BackendKind::Cpu);
+  a->load(m, p, State::rest(m));
+  b->load(m, p, State::rest(m));
+  EXPECT_THROW(a->step(b->resident(), a->resident(), Control{}, FrameRequest{}), Error);
+  EXPECT_THROW(a->step(a->resident(), b->resident(), Control{}, FrameRequest{}), Error);
+  EXPECT_NO_THROW(a->step(a->resident(), a->resident(), Control{}, FrameRequest{}));
+}
+
+// The frame's named phases are timed by the backend's clock; a phase that did not run reads 0.
+TEST(CpuBackendRobustness, StepTimesItsNamedPhases) {
+  for (const BackendFactory& make : {BackendFactory([] { return make_backend(BackendKind::Cpu); }),
+                                     BackendFactory([] { return gpu::make_emulated_backend(); })}) {
+    const Params p;
+    const Model m = small_phantom(p);
+    auto b = make();
+    b->load(m, p, State::rest(m));
+    const Index g = paper_grab_centre(m);
+    const Control pull({g}, {Vec3{0.0f, -1.0f, 0.0f}}, {kGrabbed}, true);
+    FrameRequest with_guard, without_guard;
+    without_guard.frame_end_guard = false;
+    const FrameStats a = b->step(b->resident(), b->resident(), pull, with_guard);
+    const FrameStats c = b->step(b->resident(), b->resident(), pull, without_guard);
+    for (int ph = 0; ph < kPhaseCount; ++ph) {
+      EXPECT_GE(a.phase_ms[ph], 0.0) << phase_name(static_cast<Phase>(ph));
+      EXPECT_GE(c.phase_ms[ph], 0.0) << phase_name(static_cast<Phase>(ph));
+    }
+    EXPECT_GT(a.phase_ms[static_cast<int>(Phase::ChainMail)], 0.0) << "the wave takes time";
+    EXPECT_GT(a.phase_ms[static_cast<int>(Phase::FrameEnd)], 0.0) << "the guard ran";
+    EXPECT_EQ(c.phase_ms[static_cast<int>(Phase::FrameEnd)], 0.0) << "the guard did not run";
+    EXPECT_GT(a.propagate.sweeps, 0) << "a deformation frame propagates";
+  }
 }
 
 // ---- worker pool: exceptions -------------------------------------------------------------

@@ -148,8 +148,9 @@ inline void check_waves(const Factory& make_device, const Model& m, const Params
     std::vector<Vec3> targets;
     for (Index i : fixed) targets.push_back(now[static_cast<std::size_t>(i)] + off);
     const std::vector<std::uint8_t> fl(fixed.size(), kGrabbed);
-    cpu->set_fixed(fixed, targets, fl);
-    dev->set_fixed(fixed, targets, fl);
+    const Control control(fixed, targets, fl);
+    cpu->apply_control(control);
+    dev->apply_control(control);
     cpu->snapshot();
     dev->snapshot();
     const PropagateStats pc = cpu->propagate(), pd = dev->propagate();
@@ -276,6 +277,9 @@ inline void check_pipeline(const Factory& make_device, const Model& m, const Par
     ASSERT_EQ(ra.deform, rb.deform);
     deform += ra.deform;
     EXPECT_EQ(ra.propagate_converged, rb.propagate_converged);
+    // "Active" means the same on both backends: the bricks any stage of the frame worked on.
+    EXPECT_EQ(ra.active_bricks, rb.active_bricks) << "active bricks";
+    EXPECT_EQ(ra.active_elements, rb.active_elements) << "active elements";
     const State& xa = a.state();
     const State& xb = b.state();
     const float d = std::max(max_diff(xa.disp, xb.disp), max_diff(xa.vel, xb.vel));

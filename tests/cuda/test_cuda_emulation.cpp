@@ -89,7 +89,7 @@ TEST(CudaEmulation, PropagationListsGrowOnOverflow) {
   const std::vector<Index> fixed = ball(m, Int3{14, 14, 7}, 1.5f);
   std::vector<Vec3> targets;
   for (Index i : fixed) targets.push_back(Vec3{0, -2.0f, 0});
-  b.set_fixed(fixed, targets, std::vector<std::uint8_t>(fixed.size(), kGrabbed));
+  b.apply_control(Control(fixed, targets, std::vector<std::uint8_t>(fixed.size(), kGrabbed)));
   const PropagateStats st = b.propagate();
   EXPECT_GT(st.reached, 0);
   EXPECT_GT(b.list_regrowths(), 0) << "the tiny lists must have overflowed";
@@ -110,6 +110,36 @@ TEST(CudaEmulation, LinkRestoration) {
   const Params p;
   check_restore(emulated(), phantom_model({24, 20, 12}, p), p, 3, "phantom 24x20x12");
   check_restore(emulated(), random_model({19, 17, 13}, 4, p), p, 4, "random lattice");
+}
+
+// "Active bricks" is the union of the bricks the stages of a frame worked on, on both backends
+// (it was a per-stage maximum on CUDA): a small pull, its hold and a release.
+TEST(CudaEmulation, ActiveBricksAreTheUnionOfTheStagesOnBothBackends) {
+  const Params p;
+  const Model m = phantom_model({48, 40, 24}, p);
+  Simulation cpu(m, p, make_backend(BackendKind::Cpu)), dev(m, p, gpu::make_emulated_backend(2));
+  for (Simulation* s : {&cpu, &dev}) s->grab(paper_grab_centre(m));
+  // Frame 0 checks every brick (a loaded state is checked once); from frame 1 on, work follows
+  // the pull.
+  Index quietest = m.size(), busiest = 0;
+  for (int f = 0; f < 16; ++f) {
+    SCOPED_TRACE("frame " + std::to_string(f));
+    if (f < 8)
+      for (Simulation* s : {&cpu, &dev}) s->move_tool({0.0f, -0.5f * static_cast<float>(f + 1), 0.0f});
+    if (f == 12)
+      for (Simulation* s : {&cpu, &dev}) s->release();
+    const FrameReport rc = cpu.step(), rd = dev.step();
+    ASSERT_EQ(rc.active_bricks, rd.active_bricks);
+    ASSERT_EQ(rc.active_elements, rd.active_elements);
+    if (f == 0) continue;
+    quietest = std::min(quietest, rc.active_bricks);
+    busiest = std::max(busiest, rc.active_bricks);
+  }
+  solver::BrickGrid grid;
+  grid.init(m.dims, p.solver.brick_size);
+  EXPECT_GT(quietest, 0) << "every frame of the pull and the hold has work";
+  EXPECT_LT(quietest, grid.count) << "some bricks must sleep early in the pull";
+  EXPECT_GT(busiest, quietest) << "the activity must change over the run";
 }
 
 TEST(CudaEmulation, PipelinePaperProtocolABC) {

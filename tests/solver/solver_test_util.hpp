@@ -58,7 +58,7 @@ struct WaveRunner {
   /// is where the CPU backend takes its X- snapshot for the next frame.
   State wave(const std::vector<Index>& fixed, const std::vector<Vec3>& targets) {
     std::vector<std::uint8_t> fl(fixed.size(), static_cast<std::uint8_t>(kGrabbed));
-    backend->set_fixed(fixed, targets, fl);
+    backend->apply_control(Control(fixed, targets, fl));
     backend->snapshot();
     last = backend->propagate();
     State s;
