@@ -225,6 +225,14 @@ void register_experiment(CLI::App& app) {
         track.push_back({d.x, d.y, d.z});
       }
       jc["grab_centre_displacement"] = track;
+      // With the displacement, the velocity state tells what the layer fed: the ChainMail
+      // correction of frame t is u(t) - beta rho V(t) - u(t - 1) where nothing clamped.
+      nlohmann::json velocity = nlohmann::json::array();
+      for (const Vec3& v : c.centre_velocity) {
+        for (float x : {v.x, v.y, v.z}) require_finite(x, cond + " grab centre velocity");
+        velocity.push_back({v.x, v.y, v.z});
+      }
+      jc["grab_centre_velocity"] = velocity;
     }
     // "holds" (true only when held) stays for older readers; "status" says held, failed or
     // not_applicable, the last with its reason. A ratio over 0 (+inf) is written as null.

@@ -21,6 +21,7 @@ struct ConditionResult {
   std::string label;                      ///< "A", "B", "C"
   std::vector<FrameReport> frames;        ///< every frame of the scenario
   std::vector<Vec3> centre_displacement;  ///< grab-centre displacement from rest at the end of each frame
+  std::vector<Vec3> centre_velocity;      ///< its velocity state V at the end of each frame (0 while held, and under A)
   Vec3 centre_rest{};                     ///< its rest position
   PerTissue initial{}, peak{}, auc{};     ///< Table 2 over the recorded frames after release
   double chainmail_ms = 0, inertia_ms = 0, snapshot_ms = 0, sim_total_ms = 0;  ///< means per frame

@@ -257,6 +257,10 @@ py::dict condition_dict(const ConditionResult& c) {
     }
   d["centre_track"] = t;
   d["centre_displacement"] = u;
+  py::array_t<float> v({static_cast<py::ssize_t>(c.centre_velocity.size()), py::ssize_t{3}});
+  for (py::ssize_t f = 0; f < static_cast<py::ssize_t>(c.centre_velocity.size()); ++f)
+    for (int a = 0; a < 3; ++a) v.mutable_at(f, a) = c.centre_velocity[static_cast<std::size_t>(f)][a];
+  d["centre_velocity"] = v;
   d["frames"] = report_columns(c.frames);
   return d;
 }

@@ -141,6 +141,7 @@ ConditionResult run_condition(const Model& model, Params params, DampingMode mod
     if (f.tool_limited && r.first_limited_frame < 0) r.first_limited_frame = f.frame;
     r.centre_displacement.push_back(sim.displacement(centre));
     const State& s = sim.state();
+    r.centre_velocity.push_back(s.vel[static_cast<std::size_t>(centre)]);
     const int frame = static_cast<int>(r.frames.size()) - 1;
     if (frame >= release && frame < release + recorded) far_field.add_frame(previous, s.disp);
     if (frame >= release - 1 && frame < release + recorded - 1) previous = s.disp;

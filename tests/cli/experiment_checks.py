@@ -99,11 +99,30 @@ def check_common(label, summary, stdout, report):
         fail(f"{label}: C far_field_share.skin_fat {c_share} differs from its check's figure")
     if summary["scenario"]["far_field_distance"] != 40:
         fail(f"{label}: far_field_distance {summary['scenario']['far_field_distance']}")
+    check_centre_velocity(label, summary)
     for needle in ("SPEC §8.8, local response", "| `C_skin_muscle_auc_ratio` | 18.7 |"):
         if needle not in report:
             fail(f"{label}: report.md lacks {needle!r}")
     ok(f"{label}: 33 checks, {counts}; console, report.md and far-field shares agree")
     return counts
+
+
+def check_centre_velocity(label, summary):
+    """The grab centre's velocity state per frame, beside its displacement: 0 while the grab holds
+    it (FIXED) and in every frame under A (no dynamics); under B and C the layer moves it after
+    release."""
+    release = summary["scenario"]["release_frame"]
+    for c in ("A", "B", "C"):
+        cond = summary["conditions"][c]
+        v, u = cond.get("grab_centre_velocity"), cond["grab_centre_displacement"]
+        if v is None or len(v) != len(u):
+            fail(f"{label}: condition {c} grab_centre_velocity has {None if v is None else len(v)} frames, "
+                 f"the displacement {len(u)}")
+        if any(x != 0 for f in v[:release] for x in f):
+            fail(f"{label}: condition {c}: the grab centre has a velocity while held")
+        moving = any(x != 0 for f in v[release:] for x in f)
+        if moving != (c != "A"):
+            fail(f"{label}: condition {c}: grab centre velocity after release {'non-zero' if moving else 'zero'}")
 
 
 def main():

@@ -202,11 +202,15 @@ def test_experiment_summary_and_scenario_player_agree(phantom):
     sim = hpcm.Simulation(phantom, params)
     player = hpcm.ScenarioPlayer(scenario, sim)
     idx = np.ravel_multi_index(result["grab_centre"], SMALL, order="F")
-    track = []
+    track, velocity = [], []
     while not player.done:
         player.step()
         track.append(sim.positions().reshape(-1, 3, order="F")[idx])
+        velocity.append(sim.velocities().reshape(-1, 3, order="F")[idx])
     np.testing.assert_array_equal(np.array(track), c["centre_track"])
+    # And the same velocity state: 0 while held, moving after release under C.
+    np.testing.assert_array_equal(np.array(velocity), c["centre_velocity"])
+    assert not c["centre_velocity"][:7].any() and c["centre_velocity"][7:].any()
 
 
 # ---- input grids and exports ----------------------------------------------------------------
