@@ -6,7 +6,8 @@ std::vector<PanelParam> panel_params(const std::string& section) {
   std::vector<PanelParam> out;
   for (const ParamSpec& s : param_table()) {
     if (s.section() != section) continue;
-    PanelParam w{&s};
+    PanelParam w;
+    w.spec = &s;
     // Numbers show their valid range; a checkbox or a list of choices shows it by itself.
     const bool choice = s.type == ParamType::Flag || s.type == ParamType::Choice || !s.allowed.empty();
     w.label = choice ? s.name() : s.name() + " " + range_text(s);

@@ -9,7 +9,7 @@
 namespace hpcm::viewer {
 
 struct PanelParam {
-  const ParamSpec* spec;
+  const ParamSpec* spec = nullptr;
   std::string label;        ///< "relax_omega [1, 1.95]": the key's name and (numbers) valid range
   std::string tooltip;      ///< unit and help
   double lo = 0, hi = 0;    ///< slider span (Real, Integer, PerClass, PointField), within the valid range

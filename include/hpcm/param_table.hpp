@@ -35,7 +35,7 @@ struct SliderHint {
 
 struct ParamSpec {
   std::string key;      ///< TOML key with its section, "dynamics.alpha"; a point column: "material.points[].tau"
-  ParamType type;
+  ParamType type = ParamType::Real;
   ParamRange range{0, 0};          ///< Real, Integer, PerClass, PointField
   std::vector<int> allowed;        ///< Integer: the only valid values when not empty (brick_size)
   std::vector<std::string> choices;  ///< Choice: the names accepted (the first of each value is written)

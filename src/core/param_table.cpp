@@ -11,29 +11,38 @@ namespace {
 constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr ParamRange kFinite{-kInf, kInf};
 
+/// A spec with its key, type and range; every other member at its default.
+ParamSpec spec(std::string key, ParamType type, ParamRange range = {0, 0}) {
+  ParamSpec s;
+  s.key = std::move(key);
+  s.type = type;
+  s.range = range;
+  return s;
+}
+
 ParamSpec real(std::string key, float& (*field)(Params&), ParamRange range, std::string unit, std::string help,
                SliderHint slider = {0, 0}) {
-  ParamSpec s{std::move(key), ParamType::Real, range};
+  ParamSpec s = spec(std::move(key), ParamType::Real, range);
   s.real = field, s.unit = std::move(unit), s.help = std::move(help), s.slider = slider;
   return s;
 }
 
 ParamSpec integer(std::string key, int& (*field)(Params&), ParamRange range, std::string help, SliderHint slider = {0, 0}) {
-  ParamSpec s{std::move(key), ParamType::Integer, range};
+  ParamSpec s = spec(std::move(key), ParamType::Integer, range);
   s.integer = field, s.help = std::move(help), s.slider = slider;
   return s;
 }
 
 ParamSpec per_class(std::string key, PerTissue& (*field)(Params&), ParamRange range, std::string help,
                     SliderHint slider = {0, 0}) {
-  ParamSpec s{std::move(key), ParamType::PerClass, range};
+  ParamSpec s = spec(std::move(key), ParamType::PerClass, range);
   s.per_class = field, s.help = std::move(help), s.slider = slider;
   return s;
 }
 
 ParamSpec point_field(std::string key, float MaterialPoint::*field, ParamRange range, std::string unit, std::string help,
                       SliderHint slider) {
-  ParamSpec s{std::move(key), ParamType::PointField, range};
+  ParamSpec s = spec(std::move(key), ParamType::PointField, range);
   s.point_field = field, s.unit = std::move(unit), s.help = std::move(help), s.slider = slider;
   return s;
 }
@@ -55,7 +64,7 @@ std::vector<ParamSpec> make_table() {
 
   // [material]
   {
-    ParamSpec s{"material.points", ParamType::Points};
+    ParamSpec s = spec("material.points", ParamType::Points);
     s.points = [](Params& p) -> std::vector<MaterialPoint>& { return p.material.points; };
     s.help = "control points { hu, tau, w }: at least 2, hu strictly increasing; giving points replaces the whole list";
     t.push_back(std::move(s));
@@ -92,7 +101,7 @@ std::vector<ParamSpec> make_table() {
                    "over-relaxation of each relaxation step (1 = plain Gauss-Seidel, the paper's rule); enters the "
                    "stability rule"));
   {
-    ParamSpec s{"solver.anchors", ParamType::Choice};
+    ParamSpec s = spec("solver.anchors", ParamType::Choice);
     s.choices = {"none", "bone", "border"};
     s.choice_name = [](const Params& p) -> std::string { return anchor_mode_name(p.solver.anchors); };
     s.set_choice = [](Params& p, const std::string& v) { p.solver.anchors = parse_anchor_mode(v, "solver.anchors"); };
@@ -102,7 +111,7 @@ std::vector<ParamSpec> make_table() {
   t.push_back(integer("solver.max_propagation_sweeps", [](Params& p) -> int& { return p.solver.max_propagation_sweeps; },
                       {1, 10000000}, "safety cap on propagation sweeps per frame", {1, 10000000, true}));
   {
-    ParamSpec s{"solver.sleep", ParamType::Flag};
+    ParamSpec s = spec("solver.sleep", ParamType::Flag);
     s.flag = [](Params& p) -> bool& { return p.solver.sleep; };
     s.help = "bricks (brick_size^3 elements) where nothing moves are skipped until the wave, a moving neighbour or "
              "the tool wakes them; false keeps every brick awake every frame (the exact reference, for measuring "
@@ -112,7 +121,7 @@ std::vector<ParamSpec> make_table() {
 
   // [dynamics]
   {
-    ParamSpec s{"dynamics.mode", ParamType::Choice};
+    ParamSpec s = spec("dynamics.mode", ParamType::Choice);
     s.choices = {"none", "simple", "viscoelastic"};
     s.choice_name = [](const Params& p) -> std::string { return damping_mode_name(p.dynamics.mode); };
     s.set_choice = [](Params& p, const std::string& v) { p.dynamics.mode = parse_damping_mode(v, "dynamics.mode"); };
