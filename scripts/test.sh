@@ -13,7 +13,8 @@
 # Sized for a 2-core machine (docs/architecture.md, "The CI run"; CPU seconds per stage there):
 # - The ASan preset neither builds nor registers the `heavy` and `e2e` test executables
 #   (HPCM_SKIP_TEST_LABELS; its test preset excludes the `e2e` script tests too), so it
-#   compiles only what its own run executes.
+#   compiles only what its own run executes. Its test preset also leaves to the Release stage
+#   report_script (Python only) and the stability rule's measured settling runs.
 # - hpcm_cli, hpcm_test_core and the Python module are unity builds (every translation unit
 #   compiled CLI11 / GoogleTest / pybind11 anew); the solver and backend libraries are not,
 #   and keep their flags, so results stay bitwise the same (golden states).
