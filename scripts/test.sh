@@ -9,6 +9,17 @@
 # lattices) and `e2e` (whole experiments and tool runs checked for their figures, the viewer)
 # run in the Release suite only: they reach no code the unit tests do not, and under the
 # sanitizers they would take most of the CI budget.
+#
+# Sized for a 2-core machine (docs/architecture.md, "The CI run"; CPU seconds per stage there):
+# - The ASan preset neither builds nor registers the `heavy` and `e2e` test executables
+#   (HPCM_SKIP_TEST_LABELS; its test preset excludes the `e2e` script tests too), so it
+#   compiles only what its own run executes. Its test preset also leaves to the Release stage
+#   report_script (Python only) and the stability rule's measured settling runs.
+# - hpcm_cli, hpcm_test_core and the Python module are unity builds (every translation unit
+#   compiled CLI11 / GoogleTest / pybind11 anew); the solver and backend libraries are not,
+#   and keep their flags, so results stay bitwise the same (golden states).
+# - The long tests carry a CTest COST (tests/CMakeLists.txt), so a fresh clone, which has no
+#   CTestCostData.txt, starts them first and no core idles behind one at the end.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install-deps.sh
@@ -30,7 +41,7 @@ if [ "${HPCM_SANITIZE:-1}" != 0 ]; then
   stage "ASan + UBSan build and test suite"
   cmake --preset asan
   cmake --build --preset asan -j "$JOBS"
-  ctest --preset asan -j "$JOBS" -LE "heavy|e2e"
+  ctest --preset asan -j "$JOBS"  # the preset leaves out the labels heavy and e2e
 fi
 if [ "${HPCM_TSAN:-1}" != 0 ]; then
   stage "ThreadSanitizer build and threaded tests"
