@@ -127,6 +127,7 @@ class Backend {
   void load(const Model& m, const Params& p, const State& s) {
     upload(m, p, s);
     applied_revision_ = 0;
+    link_metrics_.reset();  // the links may be new
   }
   /// The one reload path: the model the backend was loaded with (same object) or the params
   /// changed (ModelChange flags). Materials or anchors: the resident state is reloaded with the
@@ -203,6 +204,7 @@ class Backend {
 
  private:
   std::uint64_t applied_revision_ = 0;  ///< of the installed FIXED set; 0: none installed
+  IncrementalMetrics link_metrics_;     ///< FrameRequest::link_violation, measured where the frame moved
 };
 
 }  // namespace hpcm

@@ -148,6 +148,7 @@ class Simulation {
   };
   std::uint64_t positions_version_ = 0;
   Metric link_metric_, jacobian_metric_;
+  IncrementalMetrics jacobian_metrics_;  ///< recomputes the cells around what moved
   /// Frame-end displacements on the host (of positions_version_ end_pos_version_): the previous
   /// frame's end, from which the speeds of a frame the fold guard changed are taken.
   std::vector<Vec3> end_pos_, previous_end_;

@@ -54,6 +54,30 @@ struct CellJacobianStats {
 /// From the displacements: edges unit_a + (u_next - u), in double.
 CellJacobianStats cell_jacobian(const Model& m, const std::vector<Vec3>& disp);
 
+/// max_link_violation and cell_jacobian of a sequence of displacement fields (the frames of a
+/// run), recomputed only in the blocks of 8×8×8 elements around elements whose displacement
+/// changed (bitwise) since the previous call: a frame moves a few bricks of a CT, and the
+/// metrics then cost what the motion costs. The values are exactly the whole-lattice functions'
+/// (a maximum, a minimum and a count do not depend on the order). One object per metric and
+/// sequence: it keeps a copy of the last field (12 bytes per element). reset() when the
+/// model's links change (tissue classes or tolerances); another lattice size resets by itself.
+class IncrementalMetrics {
+ public:
+  float max_link_violation(const Model& m, const std::vector<Vec3>& disp);
+  CellJacobianStats cell_jacobian(const Model& m, const std::vector<Vec3>& disp);
+  void reset();
+
+ private:
+  static constexpr int kBlock = 8;
+  std::vector<int> dirty_blocks(const Model& m, const std::vector<Vec3>& disp);
+  Int3 block_lo(int b) const;
+  std::vector<Vec3> seen_;
+  Int3 blocks_{0, 0, 0};
+  std::vector<float> link_max_;
+  std::vector<double> cell_min_;
+  std::vector<Index> cell_folded_;
+};
+
 /// The determinant at one cell corner from the displacement differences along its three edges
 /// (each oriented along +x, +y, +z): the unit rest edge plus the difference, in double.
 inline double corner_determinant(Vec3 dx, Vec3 dy, Vec3 dz) {

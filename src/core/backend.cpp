@@ -150,7 +150,7 @@ FrameStats Backend::step(StateHandle in, StateHandle out, const Control& c, cons
   if (r.link_violation && (!r.link_violation_known || s.chainmail_active_bricks > 0)) {
     std::vector<Vec3> disp;
     download_displacements(disp);
-    s.max_link_violation = max_link_violation(model(), disp);
+    s.max_link_violation = link_metrics_.max_link_violation(model(), disp);
     s.link_violation_measured = true;
   }
   {

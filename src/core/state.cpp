@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cstring>
 #include <limits>
 
 #include "core/link_box.hpp"
@@ -25,69 +26,185 @@ std::vector<Point3> positions(const Model& m, const std::vector<Vec3>& disp) {
   return out;
 }
 
-float max_link_violation(const Model& m, const std::vector<Vec3>& disp) {
+namespace {
+
+/// Largest link violation over the links whose lower element lies in [x0, x1) × [y0, y1) ×
+/// [z0, z1) (each element owns its +x, +y and +z link).
+float link_max_in(const Model& m, const std::vector<Vec3>& disp, Int3 lo, Int3 hi) {
+  const int d[3] = {m.dims.x, m.dims.y, m.dims.z};
+  const Index stride[3] = {1, d[0], static_cast<Index>(d[0]) * d[1]};
+  float w = 0.0f;
+  for (int z = lo.z; z < hi.z; ++z)
+    for (int y = lo.y; y < hi.y; ++y)
+      for (int x = lo.x; x < hi.x; ++x) {
+        const Index i = m.index(x, y, z);
+        const int c[3] = {x, y, z};
+        for (int a = 0; a < 3; ++a)
+          if (c[a] + 1 < d[a]) w = std::max(w, link_violation(disp[i], disp[i + stride[a]], m.link(a, i), a));
+      }
+  return w;
+}
+
+struct CellRange {
+  double min_det = 1.0;
+  Index folded = 0;
+};
+
+/// The cells whose lower corner lies in [lo, hi) (clipped to the cells there are).
+CellRange cells_in(const Model& m, const std::vector<Vec3>& disp, Int3 lo, Int3 hi) {
   const int nx = m.dims.x, ny = m.dims.y, nz = m.dims.z;
-  const Index stride[3] = {1, nx, static_cast<Index>(nx) * ny};
+  const Index sy = nx, sz = static_cast<Index>(nx) * ny;
+  CellRange r;
+  for (int z = lo.z; z < std::min(hi.z, nz - 1); ++z)
+    for (int y = lo.y; y < std::min(hi.y, ny - 1); ++y)
+      for (int x = lo.x; x < std::min(hi.x, nx - 1); ++x) {
+        const Index base = m.index(x, y, z);
+        double cell_min = 1e30;
+        for (int k = 0; k < 2; ++k)
+          for (int j = 0; j < 2; ++j)
+            for (int i = 0; i < 2; ++i) {
+              const Index c = base + i + j * sy + k * sz;
+              // Edges to the corner's neighbours inside the cell, oriented along +x, +y, +z.
+              const Vec3 u = disp[c];
+              const double det = corner_determinant(i ? u - disp[c - 1] : disp[c + 1] - u, j ? u - disp[c - sy] : disp[c + sy] - u,
+                                                    k ? u - disp[c - sz] : disp[c + sz] - u);
+              cell_min = std::min(cell_min, det);
+            }
+        r.min_det = std::min(r.min_det, cell_min);
+        if (cell_min <= 0.0) ++r.folded;
+      }
+  return r;
+}
+
+CellJacobianStats cell_stats(const Model& m, double min_det, Index folded) {
+  CellJacobianStats st;
+  st.min_det = static_cast<float>(min_det);
+  st.folded = folded;
+  st.cells = static_cast<Index>(m.dims.x - 1) * (m.dims.y - 1) * (m.dims.z - 1);
+  return st;
+}
+
+}  // namespace
+
+float max_link_violation(const Model& m, const std::vector<Vec3>& disp) {
+  const int nz = m.dims.z;
   const int parts = pass_parts(nz);
   std::vector<float> worst(static_cast<std::size_t>(parts), 0.0f);
   run_parts(nz, parts, [&](int part, int z0, int z1) {
-    float w = 0.0f;
-    for (int z = z0; z < z1; ++z)
-      for (int y = 0; y < ny; ++y)
-        for (int x = 0; x < nx; ++x) {
-          const Index i = m.index(x, y, z);
-          const int c[3] = {x, y, z};
-          const int d[3] = {nx, ny, nz};
-          for (int a = 0; a < 3; ++a)
-            if (c[a] + 1 < d[a]) w = std::max(w, link_violation(disp[i], disp[i + stride[a]], m.link(a, i), a));
-        }
-    worst[static_cast<std::size_t>(part)] = w;
+    worst[static_cast<std::size_t>(part)] = link_max_in(m, disp, {0, 0, z0}, {m.dims.x, m.dims.y, z1});
   });
   return *std::max_element(worst.begin(), worst.end());
 }
 
 CellJacobianStats cell_jacobian(const Model& m, const std::vector<Vec3>& disp) {
-  CellJacobianStats st;
   const int nx = m.dims.x, ny = m.dims.y, nz = m.dims.z;
-  if (nx < 2 || ny < 2 || nz < 2) return st;
-  const Index sy = nx, sz = static_cast<Index>(nx) * ny;
+  if (nx < 2 || ny < 2 || nz < 2) return {};
   const int parts = pass_parts(nz - 1);
-  std::vector<double> part_min(static_cast<std::size_t>(parts), 1.0);
-  std::vector<Index> part_folded(static_cast<std::size_t>(parts), 0);
-  run_parts(nz - 1, parts, [&](int part, int z0, int z1) {
-    double min_det = 1.0;
-    Index folded = 0;
-    for (int z = z0; z < z1; ++z)
-      for (int y = 0; y < ny - 1; ++y)
-        for (int x = 0; x < nx - 1; ++x) {
-          const Index base = m.index(x, y, z);
-          double cell_min = 1e30;
-          for (int k = 0; k < 2; ++k)
-            for (int j = 0; j < 2; ++j)
-              for (int i = 0; i < 2; ++i) {
-                const Index c = base + i + j * sy + k * sz;
-                // Edges to the corner's neighbours inside the cell, oriented along +x, +y, +z.
-                const Vec3 u = disp[c];
-                const double det = corner_determinant(i ? u - disp[c - 1] : disp[c + 1] - u, j ? u - disp[c - sy] : disp[c + sy] - u,
-                                                      k ? u - disp[c - sz] : disp[c + sz] - u);
-                cell_min = std::min(cell_min, det);
-              }
-          min_det = std::min(min_det, cell_min);
-          if (cell_min <= 0.0) ++folded;
+  std::vector<CellRange> part(static_cast<std::size_t>(parts));
+  run_parts(nz - 1, parts, [&](int t, int z0, int z1) { part[static_cast<std::size_t>(t)] = cells_in(m, disp, {0, 0, z0}, {nx, ny, z1}); });
+  double min_det = 1.0;
+  Index folded = 0;
+  for (const CellRange& r : part) {
+    min_det = std::min(min_det, r.min_det);
+    folded += r.folded;
+  }
+  return cell_stats(m, min_det, folded);
+}
+
+// --- IncrementalMetrics ---
+
+void IncrementalMetrics::reset() {
+  seen_.clear();
+  link_max_.clear();
+  cell_min_.clear();
+  cell_folded_.clear();
+}
+
+Int3 IncrementalMetrics::block_lo(int b) const {
+  const int bx = b % blocks_.x, by = (b / blocks_.x) % blocks_.y, bz = b / (blocks_.x * blocks_.y);
+  return {bx * kBlock, by * kBlock, bz * kBlock};
+}
+
+std::vector<int> IncrementalMetrics::dirty_blocks(const Model& m, const std::vector<Vec3>& disp) {
+  const Int3 d = m.dims;
+  const Int3 nb{(d.x + kBlock - 1) / kBlock, (d.y + kBlock - 1) / kBlock, (d.z + kBlock - 1) / kBlock};
+  const int count = nb.x * nb.y * nb.z;
+  std::vector<int> dirty;
+  if (seen_.size() != disp.size() || !(nb == blocks_) || static_cast<Index>(disp.size()) != m.size()) {
+    // First call, or another lattice: every block.
+    blocks_ = nb;
+    seen_ = disp;
+    dirty.resize(static_cast<std::size_t>(count));
+    for (int b = 0; b < count; ++b) dirty[static_cast<std::size_t>(b)] = b;
+    return dirty;
+  }
+  // Blocks holding an element whose displacement differs (bitwise) from the last call; the
+  // parts own whole planes of blocks, so each flag has one writer.
+  std::vector<std::uint8_t> changed(static_cast<std::size_t>(count), 0);
+  run_parts(nb.z, pass_parts(nb.z), [&](int, int k0, int k1) {
+    for (int z = k0 * kBlock; z < std::min(k1 * kBlock, d.z); ++z)
+      for (int y = 0; y < d.y; ++y)
+        for (int x = 0; x < d.x; ++x) {
+          const auto i = static_cast<std::size_t>(m.index(x, y, z));
+          if (std::memcmp(&disp[i], &seen_[i], sizeof(Vec3)) == 0) continue;
+          seen_[i] = disp[i];
+          changed[static_cast<std::size_t>(x / kBlock + nb.x * (y / kBlock + nb.y * (z / kBlock)))] = 1;
         }
-    part_min[static_cast<std::size_t>(part)] = min_det;
-    part_folded[static_cast<std::size_t>(part)] = folded;
+  });
+  // An element is an end of links and a corner of cells owned by elements up to one lower
+  // along each axis: its block and the blocks below it are dirty.
+  std::vector<std::uint8_t> mark(static_cast<std::size_t>(count), 0);
+  for (int bz = 0; bz < nb.z; ++bz)
+    for (int by = 0; by < nb.y; ++by)
+      for (int bx = 0; bx < nb.x; ++bx) {
+        if (!changed[static_cast<std::size_t>(bx + nb.x * (by + nb.y * bz))]) continue;
+        for (int k = std::max(0, bz - 1); k <= bz; ++k)
+          for (int j = std::max(0, by - 1); j <= by; ++j)
+            for (int i = std::max(0, bx - 1); i <= bx; ++i) mark[static_cast<std::size_t>(i + nb.x * (j + nb.y * k))] = 1;
+      }
+  for (int b = 0; b < count; ++b)
+    if (mark[static_cast<std::size_t>(b)]) dirty.push_back(b);
+  return dirty;
+}
+
+float IncrementalMetrics::max_link_violation(const Model& m, const std::vector<Vec3>& disp) {
+  const std::vector<int> dirty = dirty_blocks(m, disp);
+  link_max_.resize(static_cast<std::size_t>(blocks_.x) * blocks_.y * blocks_.z, 0.0f);
+  const int n = static_cast<int>(dirty.size());
+  run_parts(n, pass_parts(n), [&](int, int a, int b) {
+    for (int k = a; k < b; ++k) {
+      const int blk = dirty[static_cast<std::size_t>(k)];
+      const Int3 lo = block_lo(blk);
+      const Int3 hi{std::min(lo.x + kBlock, m.dims.x), std::min(lo.y + kBlock, m.dims.y), std::min(lo.z + kBlock, m.dims.z)};
+      link_max_[static_cast<std::size_t>(blk)] = link_max_in(m, disp, lo, hi);
+    }
+  });
+  return link_max_.empty() ? 0.0f : *std::max_element(link_max_.begin(), link_max_.end());
+}
+
+CellJacobianStats IncrementalMetrics::cell_jacobian(const Model& m, const std::vector<Vec3>& disp) {
+  const std::vector<int> dirty = dirty_blocks(m, disp);
+  if (m.dims.x < 2 || m.dims.y < 2 || m.dims.z < 2) return {};
+  const std::size_t count = static_cast<std::size_t>(blocks_.x) * blocks_.y * blocks_.z;
+  cell_min_.resize(count, 1.0);
+  cell_folded_.resize(count, 0);
+  const int n = static_cast<int>(dirty.size());
+  run_parts(n, pass_parts(n), [&](int, int a, int b) {
+    for (int k = a; k < b; ++k) {
+      const int blk = dirty[static_cast<std::size_t>(k)];
+      const Int3 lo = block_lo(blk);
+      const CellRange r = cells_in(m, disp, lo, {lo.x + kBlock, lo.y + kBlock, lo.z + kBlock});
+      cell_min_[static_cast<std::size_t>(blk)] = r.min_det;
+      cell_folded_[static_cast<std::size_t>(blk)] = r.folded;
+    }
   });
   double min_det = 1.0;
   Index folded = 0;
-  for (int t = 0; t < parts; ++t) {
-    min_det = std::min(min_det, part_min[static_cast<std::size_t>(t)]);
-    folded += part_folded[static_cast<std::size_t>(t)];
+  for (std::size_t b = 0; b < count; ++b) {
+    min_det = std::min(min_det, cell_min_[b]);
+    folded += cell_folded_[b];
   }
-  st.min_det = static_cast<float>(min_det);
-  st.folded = folded;
-  st.cells = static_cast<Index>(nx - 1) * (ny - 1) * (nz - 1);
-  return st;
+  return cell_stats(m, min_det, folded);
 }
 
 }  // namespace hpcm

@@ -282,7 +282,7 @@ FrameReport Simulation::step(const StepOptions& opt) {
   if (host_speeds && r.end_guard_moved > 0) sp = speeds_between(model_, previous_end_, frame_end_displacements());
   if (opt.cell_jacobian) {
     if (jacobian_metric_.version != positions_version_) {
-      const CellJacobianStats cj = cell_jacobian(model_, frame_end_displacements());
+      const CellJacobianStats cj = jacobian_metrics_.cell_jacobian(model_, frame_end_displacements());
       jacobian_metric_ = {positions_version_, cj.min_det, cj.folded};
     }
     r.min_cell_jacobian = jacobian_metric_.value;
