@@ -46,6 +46,27 @@ HPCM_HD inline T from_bit_pattern(lane_int_t<T> i) {
 #endif
 }
 
+/// a + b on integer lanes, wrapping around (modulo 2^32) instead of overflowing: bit-pattern
+/// arithmetic evaluates every lane, also those whose result is not used (t = -0.0f has the bit
+/// pattern INT32_MIN, and INT32_MIN - 1 would be a signed overflow, undefined behaviour).
+HPCM_HD inline std::int32_t wrapping_add(std::int32_t a, std::int32_t b) {
+  return static_cast<std::int32_t>(static_cast<std::uint32_t>(a) + static_cast<std::uint32_t>(b));
+}
+#if !defined(__CUDACC__)
+template <class I>
+inline I wrapping_add(I a, I b) {  // GCC integer vectors (device code has float lanes only)
+  typedef unsigned int U __attribute__((vector_size(sizeof(I))));  // an alias-declaration would drop the attribute
+  static_assert(sizeof(U) == sizeof(I));
+  U ua, ub;
+  std::memcpy(&ua, &a, sizeof ua);
+  std::memcpy(&ub, &b, sizeof ub);
+  const U sum = ua + ub;
+  I out;
+  std::memcpy(&out, &sum, sizeof out);
+  return out;
+}
+#endif
+
 /// a + b and a - b, one IEEE rounding each: the plain operators. The AVX-512 kernels
 /// (cpu/simd_avx512.cpp) specialise them as fused multiply-adds by one (a * 1 + b rounds once,
 /// to the same bits), which run on the multiply pipes while plain additions, maxima and minima

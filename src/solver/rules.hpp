@@ -176,7 +176,7 @@ HPCM_HD inline T relax_coordinate(T cur, T q, T omega) {
   const auto toward_zero = (t > cur) == (t > zero);
   const I bits = bit_pattern(t), one = I{} + 1, minus_one = I{} - 1;
   const I sign_of_cur = bit_pattern(cur) & (I{} + static_cast<std::int32_t>(0x80000000u));
-  const I stepped = t == zero ? (sign_of_cur | one) : bits + (toward_zero ? minus_one : one);
+  const I stepped = t == zero ? (sign_of_cur | one) : wrapping_add(bits, toward_zero ? minus_one : one);
   return from_bit_pattern<T>(back ? stepped : bits);
 }
 
