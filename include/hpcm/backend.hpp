@@ -205,6 +205,7 @@ class Backend {
  private:
   std::uint64_t applied_revision_ = 0;  ///< of the installed FIXED set; 0: none installed
   IncrementalMetrics link_metrics_;     ///< FrameRequest::link_violation, measured where the frame moved
+  std::vector<Vec3> link_disp_;         ///< its download, kept so a frame does not allocate one
 };
 
 }  // namespace hpcm

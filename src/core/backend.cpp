@@ -15,10 +15,6 @@ BackendKind parse_backend(const std::string& s, const std::string& what) {
   throw Error(what + " = '" + s + "' is not one of cpu|cuda");
 }
 
-}  // namespace hpcm
-
-namespace hpcm {
-
 namespace {
 
 std::uint64_t next_revision() {
@@ -148,9 +144,8 @@ FrameStats Backend::step(StateHandle in, StateHandle out, const Control& c, cons
   s.chainmail_active_bricks = active_bricks();
   // Untimed: the metric is O(N) and measured again only when positions may have changed.
   if (r.link_violation && (!r.link_violation_known || s.chainmail_active_bricks > 0)) {
-    std::vector<Vec3> disp;
-    download_displacements(disp);
-    s.max_link_violation = link_metrics_.max_link_violation(model(), disp);
+    download_displacements(link_disp_);
+    s.max_link_violation = link_metrics_.max_link_violation(model(), link_disp_);
     s.link_violation_measured = true;
   }
   {
