@@ -51,6 +51,8 @@ void CpuBackend::upload(const Model& m, const Params& p, const State& s) {
   fixed_.clear();
   targets_.clear();
   propagation_.init(m, st_.lay, grid_);
+  bucket_width_.reset(m);
+  propagation_.set_bucket_width(bucket_width_.value());
   const SimdKernels kernels = select_kernels(chosen_kernels(forced_kernel_));
   kernel_name_ = kernels.name;
   relaxation_.init(grid_, kernels.relax);
@@ -82,6 +84,7 @@ void CpuBackend::install_fixed(const Control& c) {
   old.swap(fixed_);
   fixed_ = elements;
   targets_ = c.targets();
+  if (bucket_width_.update(*m_, fixed_, flags)) propagation_.set_bucket_width(bucket_width_.value());
   for (std::size_t k = 0; k < fixed_.size(); ++k) {
     st_.flags[static_cast<std::size_t>(L.at(fixed_[k]))] = static_cast<std::uint8_t>(kFixed | flags[k]);
   }

@@ -22,6 +22,7 @@
 #include "cpu/worker_pool.hpp"
 #include "hpcm/backend.hpp"
 #include "solver/link_restore.hpp"
+#include "solver/schedule.hpp"
 
 namespace hpcm::cpu {
 
@@ -81,6 +82,7 @@ class CpuBackend final : public Backend {
   std::vector<std::uint8_t> worked_;  ///< bricks any stage processed this frame
   std::unique_ptr<WorkerPool> pool_;
   Propagation propagation_;
+  solver::BucketWidth bucket_width_;  ///< of the installed FIXED set
   Relaxation relaxation_;
   VelocityLayer layer_;
   LinkCheck check_;

@@ -4,7 +4,6 @@
 
 #include "hpcm/state.hpp"
 #include "solver/neighbours.hpp"
-#include "solver/schedule.hpp"
 
 namespace hpcm::cpu {
 
@@ -16,7 +15,6 @@ void Propagation::init(const Model& m, const Layout& lay, const BrickGrid& grid)
   final_.assign(static_cast<std::size_t>(lay.span), 0);  // storage order
   reached_.clear();
   buckets_.clear();
-  delta_ = bucket_width(m);
 }
 
 void Propagation::recycle(std::vector<Index>& pending) {

@@ -1,8 +1,9 @@
 #pragma once
 // The CPU propagation (SPEC §4): the timestamped HP-ChainMail wave from the grabbed elements,
-// processed in time buckets (solver/rules.hpp, docs/solver.md). Every link has w >= delta
-// (the smallest link penalty), so all candidate times in the bucket [k delta, (k+1) delta)
-// come from elements already final in earlier buckets: each bucket is decided by a short,
+// processed in time buckets (solver/rules.hpp, docs/solver.md). Every link the wave crosses
+// has w >= delta (solver::BucketWidth: the smallest penalty of the links without an anchored
+// end), so all candidate times in the bucket [k delta, (k+1) delta) come from elements already
+// final in earlier buckets or FIXED: each bucket is decided by a short,
 // provably finite Jacobi iteration, and the result is exactly the Dijkstra-order result.
 // FIXED elements are final with time 0 (upstream of everything); only grabbed ones start the
 // wave: anchors never move, and their neighbours are already inside their boxes (the link
@@ -22,6 +23,8 @@ namespace hpcm::cpu {
 class Propagation {
  public:
   void init(const Model& m, const Layout& lay, const solver::BrickGrid& grid);
+  /// The bucket width of the FIXED set the next waves start from (solver::BucketWidth).
+  void set_bucket_width(float delta) { delta_ = delta; }
   /// One wave; FIXED elements are at their targets in st.p, everything else starts at st.q
   /// (u-). `wall` in lattice coordinates (each element gets its own, solver::element_wall). Marks the bricks it moves in `touched` and `hot`.
   PropagateStats run(Storage& st, const std::vector<Index>& fixed, const solver::Wall& wall, int max_sweeps,

@@ -174,7 +174,8 @@ class DeviceBackend final : public Backend {
     // the first restoration, where it would stall that frame on a large lattice.
     restorer_.init(m);
     host_fixed_.assign(N, 0);
-    delta_ = solver::bucket_width(m);
+    bucket_width_.reset(m);
+    delta_ = bucket_width_.value();
     fixed_.clear();
     n_fixed_dev_ = 0;
     active_ = active_elements_ = 0;
@@ -205,6 +206,7 @@ class DeviceBackend final : public Backend {
     const std::vector<Index>& elements = c.fixed();
     const std::vector<Vec3>& targets = c.targets();
     const std::vector<std::uint8_t>& flags = c.flags();
+    if (bucket_width_.update(*m_, elements, flags)) delta_ = bucket_width_.value();
     // Duplicates (an anchor that is also grabbed): the last occurrence wins, as on the CPU.
     std::vector<int> idx;
     std::vector<Vec3> tg;
@@ -724,6 +726,7 @@ class DeviceBackend final : public Backend {
   dynamics::LayerConstants k_{};
   Lattice L_{};
   float delta_ = 1.0f;
+  solver::BucketWidth bucket_width_;  ///< of the installed FIXED set (delta_ is its value)
   // link restoration on the host (restore_links)
   solver::LinkRestorer restorer_;
   solver::Wall wall_;

@@ -11,6 +11,7 @@
 #include "hpcm/backend_factory.hpp"
 #include "hpcm/state.hpp"
 #include "solver/reference/dijkstra.hpp"
+#include "solver/schedule.hpp"
 #include "solver_test_util.hpp"
 
 using namespace hpcm;
@@ -225,6 +226,55 @@ TEST(Propagation, ParallelEqualsDijkstraReferenceOnRandomLattices) {
     ++cases;
   }
   EXPECT_GE(cases, 50);
+}
+
+// The bucket width counts the links the wave can cross: not those with an anchored end (the
+// wave never enters an anchor, and anchors push nothing). Checked against a brute-force
+// minimum; recomputed only when the still part of the FIXED set changes.
+TEST(Propagation, BucketWidthLeavesOutTheLinksOfAnchors) {
+  const RandomCase rc = random_case(7);
+  const Model& m = rc.model;
+  std::vector<Index> fixed;
+  std::vector<std::uint8_t> flags, still(static_cast<std::size_t>(m.size()), 0);
+  for (Index i = 0; i < m.size(); ++i)
+    if (m.tissue[static_cast<std::size_t>(i)] == static_cast<std::uint8_t>(Tissue::Bone)) {
+      fixed.push_back(i);
+      flags.push_back(kAnchor);
+      still[static_cast<std::size_t>(i)] = 1;
+    }
+  ASSERT_GT(fixed.size(), 100u);
+  float every = 1e30f, crossed = 1e30f;
+  for (Index i = 0; i < m.size(); ++i) {
+    const Int3 c = m.coords(i);
+    const int ca[3] = {c.x, c.y, c.z}, n[3] = {m.dims.x, m.dims.y, m.dims.z};
+    const Index stride[3] = {1, m.dims.x, static_cast<Index>(m.dims.x) * m.dims.y};
+    for (int a = 0; a < 3; ++a) {
+      if (ca[a] + 1 >= n[a]) continue;
+      const float w = m.link(a, i).w;
+      every = std::min(every, w);
+      if (!still[static_cast<std::size_t>(i)] && !still[static_cast<std::size_t>(i + stride[a])]) crossed = std::min(crossed, w);
+    }
+  }
+  solver::BucketWidth width;
+  width.reset(m);
+  EXPECT_EQ(width.value(), every);
+  EXPECT_TRUE(width.update(m, fixed, flags));
+  EXPECT_EQ(width.value(), crossed);
+  EXPECT_GT(crossed, 4.0f * every) << "bone's links carry the smallest penalty";
+  // A grab (here on an anchored element too) leaves the still part, and the width, as it is.
+  fixed.push_back(fixed.front());
+  flags.push_back(kGrabbed);
+  for (Index g : rc.grab) {
+    fixed.push_back(g);
+    flags.push_back(kGrabbed);
+  }
+  EXPECT_FALSE(width.update(m, fixed, flags));
+  EXPECT_EQ(width.value(), crossed);
+  // No anchors: every link counts again.
+  std::vector<Index> grab_only(rc.grab);
+  if (grab_only.empty()) grab_only.push_back(0);
+  EXPECT_TRUE(width.update(m, grab_only, std::vector<std::uint8_t>(grab_only.size(), kGrabbed)));
+  EXPECT_EQ(width.value(), every);
 }
 
 // Smallest case found by a random search (seed 2802 of 6x5x6 lattices) where the second
