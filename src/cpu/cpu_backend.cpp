@@ -48,8 +48,9 @@ void CpuBackend::upload(const Model& m, const Params& p, const State& s) {
       touched_[static_cast<std::size_t>(grid_.brick_of_index(i))] = 1;
   hot_ = touched_;
   worked_.assign(nb, 0);
-  fixed_.clear();
-  targets_.clear();
+  fixed_ = {};
+  still_flags_.assign(static_cast<std::size_t>(m.size()), 0);
+  still_targets_pending_ = false;
   propagation_.init(m, st_.lay, grid_);
   bucket_width_.reset(m);
   propagation_.set_bucket_width(bucket_width_.value());
@@ -76,21 +77,34 @@ void CpuBackend::params_changed(const Params& p) {
 }
 
 void CpuBackend::install_fixed(const Control& c) {
-  const std::vector<Index>& elements = c.fixed();
-  const std::vector<std::uint8_t>& flags = c.flags();
   const Layout& L = st_.lay;
-  for (Index i : fixed_) st_.flags[static_cast<std::size_t>(L.at(i))] = 0;
-  std::vector<Index> old;
-  old.swap(fixed_);
-  fixed_ = elements;
-  targets_ = c.targets();
-  if (bucket_width_.update(*m_, fixed_, flags)) propagation_.set_bucket_width(bucket_width_.value());
-  for (std::size_t k = 0; k < fixed_.size(); ++k) {
-    st_.flags[static_cast<std::size_t>(L.at(fixed_[k]))] = static_cast<std::uint8_t>(kFixed | flags[k]);
+  auto flag_of = [&](Index i) -> std::uint8_t& { return st_.flags[static_cast<std::size_t>(L.at(i))]; };
+  solver::FixedParts next = solver::FixedParts::split(c.fixed(), c.targets(), c.flags());
+  // Elements that may leave the FIXED set: the old tool, and the old still part if it changes.
+  std::vector<Index> leaving = fixed_.tool.elements;
+  for (Index i : fixed_.tool.elements) flag_of(i) = still_flags_[static_cast<std::size_t>(i)];
+  if (!(next.still == fixed_.still)) {
+    // The anchors changed (rare: a new control from the caller, new params): O(still) work.
+    for (Index i : fixed_.still.elements) {
+      flag_of(i) = 0;
+      still_flags_[static_cast<std::size_t>(i)] = 0;
+      leaving.push_back(i);
+    }
+    fixed_.still = std::move(next.still);
+    const solver::FixedParts::Part& still = fixed_.still;
+    for (std::size_t k = 0; k < still.elements.size(); ++k)
+      still_flags_[static_cast<std::size_t>(still.elements[k])] = static_cast<std::uint8_t>(kFixed | still.flags[k]);
+    for (Index i : still.elements) flag_of(i) = still_flags_[static_cast<std::size_t>(i)];
+    if (bucket_width_.update(*m_, still.elements)) propagation_.set_bucket_width(bucket_width_.value());
+    propagation_.set_still(still.elements);
+    still_targets_pending_ = true;
   }
+  fixed_.tool = std::move(next.tool);
+  for (std::size_t k = 0; k < fixed_.tool.elements.size(); ++k)
+    flag_of(fixed_.tool.elements[k]) = static_cast<std::uint8_t>(kFixed | fixed_.tool.flags[k]);
   // Elements released from FIXED (grab released) must be relaxed again: mark their bricks.
-  for (Index i : old)
-    if (!(st_.flags[static_cast<std::size_t>(L.at(i))] & kFixed)) {
+  for (Index i : leaving)
+    if (!(flag_of(i) & kFixed)) {
       const std::size_t b = static_cast<std::size_t>(grid_.brick_of_index(i));
       hot_[b] = touched_[b] = 1;
     }
@@ -98,17 +112,26 @@ void CpuBackend::install_fixed(const Control& c) {
 
 PropagateStats CpuBackend::propagate() {
   const Layout& L = st_.lay;
-  for (std::size_t k = 0; k < fixed_.size(); ++k) {
-    const std::size_t e = static_cast<std::size_t>(L.at(fixed_[k]));
-    const Vec3 t = targets_[k];
-    if (!(Vec3{st_.p[0][e], st_.p[1][e], st_.p[2][e]} == t)) {
-      for (int a = 0; a < 3; ++a) st_.p[a][e] = t[a];
-      const std::size_t b = static_cast<std::size_t>(grid_.brick_of_index(fixed_[k]));
-      touched_[b] = hot_[b] = 1;
+  // FIXED elements move only here, to their targets: the still part's stay there until it
+  // changes, so only the tool's are looked at every wave.
+  auto apply_targets = [&](const solver::FixedParts::Part& part) {
+    for (std::size_t k = 0; k < part.elements.size(); ++k) {
+      const std::size_t e = static_cast<std::size_t>(L.at(part.elements[k]));
+      const Vec3 t = part.targets[k];
+      if (!(Vec3{st_.p[0][e], st_.p[1][e], st_.p[2][e]} == t)) {
+        for (int a = 0; a < 3; ++a) st_.p[a][e] = t[a];
+        const std::size_t b = static_cast<std::size_t>(grid_.brick_of_index(part.elements[k]));
+        touched_[b] = hot_[b] = 1;
+      }
     }
+  };
+  if (still_targets_pending_) {
+    apply_targets(fixed_.still);
+    still_targets_pending_ = false;
   }
+  apply_targets(fixed_.tool);
   const PropagateStats ps =
-      propagation_.run(st_, fixed_, wall_, p_.solver.max_propagation_sweeps, touched_, hot_, *pool_);
+      propagation_.run(st_, fixed_.tool.elements, wall_, p_.solver.max_propagation_sweeps, touched_, hot_, *pool_);
   for (std::size_t b = 0; b < touched_.size(); ++b) worked_[b] |= touched_[b];
   return ps;
 }

@@ -21,6 +21,7 @@
 #include "cpu/storage.hpp"
 #include "cpu/worker_pool.hpp"
 #include "hpcm/backend.hpp"
+#include "solver/fixed_set.hpp"
 #include "solver/link_restore.hpp"
 #include "solver/schedule.hpp"
 
@@ -76,8 +77,9 @@ class CpuBackend final : public Backend {
   float relax_threshold_sq_ = 0.0f;  ///< squared_threshold(p_.solver.relax_threshold)
   Storage st_;
   solver::BrickGrid grid_;
-  std::vector<Index> fixed_;
-  std::vector<Vec3> targets_;
+  solver::FixedParts fixed_;            ///< the installed FIXED set: still part and tool
+  std::vector<std::uint8_t> still_flags_;  ///< element order: kFixed | flags of its still entry, 0 if none
+  bool still_targets_pending_ = false;     ///< the still part's targets are applied by the next propagate()
   std::vector<std::uint8_t> touched_, hot_, unchecked_;
   std::vector<std::uint8_t> worked_;  ///< bricks any stage processed this frame
   std::unique_ptr<WorkerPool> pool_;

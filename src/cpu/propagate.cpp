@@ -13,7 +13,11 @@ void Propagation::init(const Model& m, const Layout& lay, const BrickGrid& grid)
   m_ = &m;
   grid_ = grid;
   final_.assign(static_cast<std::size_t>(lay.span), 0);  // storage order
+  still_mark_.assign(static_cast<std::size_t>(lay.span), 0);
   reached_.clear();
+  still_.clear();
+  next_still_.clear();
+  still_pending_ = false;
   buckets_.clear();
 }
 
@@ -38,18 +42,39 @@ int Propagation::gather(const Storage& st, Index e, Neighbour* nb) const {
   return count;
 }
 
-PropagateStats Propagation::run(Storage& st, const std::vector<Index>& fixed, const Wall& wall, int max_sweeps,
+void Propagation::set_still(const std::vector<Index>& still) {
+  next_still_ = still;
+  still_pending_ = true;
+}
+
+PropagateStats Propagation::run(Storage& st, const std::vector<Index>& tool, const Wall& wall, int max_sweeps,
                                 std::vector<std::uint8_t>& touched, std::vector<std::uint8_t>& hot, WorkerPool& pool) {
   const Model& m = *m_;
   const Layout& L = st.lay;
   PropagateStats ps;
-  // Forget the previous wave.
-  for (Index i : reached_) {
+  auto forget = [&](Index i) {
     const Index k = L.at(i);
     st.time[k] = kInf;
     final_[k] = 0;
-  }
+  };
+  // Forget the previous wave (it never lists a still element: those stay final with time 0).
+  for (Index i : reached_) forget(i);
   reached_.clear();
+  if (still_pending_) {
+    for (Index i : still_) {
+      forget(i);
+      still_mark_[L.at(i)] = 0;
+    }
+    still_.swap(next_still_);
+    next_still_.clear();
+    for (Index i : still_) {
+      const Index k = L.at(i);
+      st.time[k] = 0.0f;
+      final_[k] = 1;
+      still_mark_[k] = 1;
+    }
+    still_pending_ = false;
+  }
   for (auto& entry : buckets_) recycle(entry.second);
   buckets_.clear();
   const double delta = delta_;
@@ -70,13 +95,14 @@ PropagateStats Propagation::run(Storage& st, const std::vector<Index>& fixed, co
       it->second.push_back(n);
     });
   };
-  for (Index f : fixed) {
+  for (Index f : tool) {
     const Index k = L.at(f);
+    if (still_mark_[k]) continue;  // also still: final with time 0 already
     st.time[k] = 0.0f;
     final_[k] = 1;
     reached_.push_back(f);
   }
-  for (Index f : fixed)
+  for (Index f : tool)
     if (st.flags[L.at(f)] & kGrabbed) {
       const Index b = grid_.brick_of_index(f);
       touched[b] = hot[b] = 1;

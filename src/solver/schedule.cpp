@@ -40,8 +40,12 @@ bool BucketWidth::update(const Model& m, const std::vector<Index>& fixed, const 
   still.reserve(fixed.size());
   for (std::size_t k = 0; k < fixed.size(); ++k)
     if (!(flags[k] & kGrabbed)) still.push_back(fixed[k]);
+  return update(m, still);
+}
+
+bool BucketWidth::update(const Model& m, const std::vector<Index>& still) {
   if (still == still_ && !mark_.empty()) return false;
-  still_ = std::move(still);
+  still_ = still;
   mark_.assign(static_cast<std::size_t>(m.size()), 0);
   for (Index e : still_) mark_[static_cast<std::size_t>(e)] = 1;
   const float before = width_;

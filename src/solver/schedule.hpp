@@ -28,6 +28,8 @@ class BucketWidth {
   /// For the FIXED set `fixed` with its `flags` (kGrabbed: starts the wave). Returns whether the
   /// width changed.
   bool update(const Model& m, const std::vector<Index>& fixed, const std::vector<std::uint8_t>& flags);
+  /// The same from the still entries alone (the FIXED set's entries without kGrabbed, in order).
+  bool update(const Model& m, const std::vector<Index>& still);
   float value() const { return width_; }
 
  private:
