@@ -297,6 +297,77 @@ inline void check_pipeline(const Factory& make_device, const Model& m, const Par
               worst, worst_curve);
 }
 
+/// The CPU backend keeps the still part of the FIXED set (anchors) installed and seeded between
+/// controls and re-installs only the tool; the CUDA backend installs every control whole.
+/// Controls that change the tool, the anchors (with targets off rest), both, an element both
+/// anchored and grabbed, releases and idle frames must give both the same states (within `tol`;
+/// the emulation: bit for bit) and flags, every frame.
+inline void check_controls(const Factory& make_device, const Tolerance& tol) {
+  Params p;
+  p.dynamics.mode = DampingMode::Viscoelastic;
+  const Model m = phantom_model({32, 28, 16}, p);
+  auto cpu = make_backend(BackendKind::Cpu);
+  auto dev = make_device();
+  const State rest = State::rest(m);
+  cpu->load(m, p, rest);
+  dev->load(m, p, rest);
+  std::vector<Index> bone, border;
+  for (Index i = 0; i < m.size(); ++i) {
+    if (m.tissue[static_cast<std::size_t>(i)] == static_cast<std::uint8_t>(Tissue::Bone)) bone.push_back(i);
+    if (m.coords(i).x == 0) border.push_back(i);
+  }
+  ASSERT_FALSE(bone.empty());
+  const Index centre = paper_grab_centre(m);
+  const std::vector<Index> grab = ball(m, m.coords(centre), 1.5f);
+  // The FIXED set of a frame: anchors (flags kAnchor) with targets, then the tool pulled by `pull`.
+  auto control = [](const std::vector<Index>& anchors, Vec3 anchor_target, const std::vector<Index>& tool, Vec3 pull,
+                    bool deform) {
+    std::vector<Index> fixed;
+    std::vector<Vec3> targets;
+    std::vector<std::uint8_t> flags;
+    for (Index i : anchors) {
+      fixed.push_back(i);
+      targets.push_back(anchor_target);
+      flags.push_back(kAnchor);
+    }
+    for (Index i : tool) {
+      fixed.push_back(i);
+      targets.push_back(pull);
+      flags.push_back(kGrabbed);
+    }
+    return Control(fixed, targets, flags, deform);
+  };
+  std::vector<Index> tool_on_bone = grab;
+  tool_on_bone.push_back(bone.front());  // anchored and grabbed at once
+  const std::vector<Index> none;
+  int compared = 0;
+  for (int f = 0; f < 44; ++f) {
+    SCOPED_TRACE("frame " + std::to_string(f));
+    const float pull = -0.4f * static_cast<float>(std::min(f, 8) + 1);
+    Control c;
+    if (f < 10) c = control(bone, Vec3{}, tool_on_bone, Vec3{0.0f, pull, 0.0f}, true);          // pull and hold
+    else if (f < 14) c = control(bone, Vec3{}, none, Vec3{}, false);                          // released, idle
+    else if (f < 24) c = control(border, Vec3{0.2f, 0.0f, 0.0f}, grab, Vec3{0.0f, pull, 0.3f}, true);  // new anchors off rest
+    else if (f < 28) c = control(border, Vec3{0.2f, 0.0f, 0.0f}, none, Vec3{}, true);       // waves without a tool
+    else if (f < 34) c = control(bone, Vec3{}, grab, Vec3{0.0f, -1.0f, 0.0f}, f % 2 == 0);  // anchors back
+    else c = control(none, Vec3{}, none, Vec3{}, false);                                     // nothing FIXED
+    FrameRequest r;
+    cpu->step(cpu->resident(), cpu->resident(), c, r);
+    dev->step(dev->resident(), dev->resident(), c, r);
+    State a, b;
+    cpu->download(a);
+    dev->download(b);
+    ASSERT_LE(max_diff(a.disp, b.disp), tol.pos) << "positions";
+    ASSERT_LE(max_diff(a.vel, b.vel), tol.pos) << "velocities";
+    const float dt = time_diff(a.time, b.time);
+    ASSERT_GE(dt, 0.0f) << "arrival times: finite on one backend, infinite on the other";
+    ASSERT_LE(dt, tol.pos) << "arrival times";
+    ASSERT_EQ(a.flags, b.flags) << "flags";
+    ++compared;
+  }
+  EXPECT_EQ(compared, 44);
+}
+
 /// A scenario of `grabs` random grabs in sequence (pull, hold, release, idle), `frames` long.
 inline Scenario random_scenario(const Model& m, std::uint64_t seed, int grabs, int frames) {
   std::mt19937_64 rng(seed);

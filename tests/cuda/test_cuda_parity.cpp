@@ -99,6 +99,11 @@ TEST(CudaParity, PipelineRandomGrabsABC) {
 // SPEC §8.8 from both backends: the far-field split is computed on the host from the frame-end
 // positions each backend gives, so the per-class speed sums (near and far) and every check's
 // status agree (figures within the parity tolerance).
+TEST(CudaParity, ControlsChangingAnchorsAndTool) {
+  REQUIRE_CUDA();
+  check_controls(cuda(), kDeviceTol);
+}
+
 TEST(CudaParity, ExperimentChecksAndFarFieldShares) {
   REQUIRE_CUDA();
   const Params p;
