@@ -80,6 +80,14 @@ PropagateStats Propagation::run(Storage& st, const std::vector<Index>& tool, con
   const double delta = delta_;
   // `processed`: the bucket being decided. A push below it (float rounding) is dropped: that
   // bucket is decided and is not visited again. A push into it is decided before moving on.
+  auto push = [&](Index n, unsigned long long b) {
+    auto [it, added] = buckets_.try_emplace(b);
+    if (added && !spare_.empty()) {
+      it->second.swap(spare_.back());
+      spare_.pop_back();
+    }
+    it->second.push_back(n);
+  };
   auto push_neighbours = [&](Index i, float t, unsigned long long processed) {
     const Int3 c = m.coords(i);
     for_each_face_neighbour(m, c.x, c.y, c.z, i, [&](Index n, int, int, const LinkLimits& lim) {
@@ -87,12 +95,18 @@ PropagateStats Propagation::run(Storage& st, const std::vector<Index>& tool, con
       if (final_[k] || (st.flags[k] & kFixed)) return;
       const unsigned long long b = bucket_of(t + lim.w, delta);
       if (b < processed) return;
-      auto [it, added] = buckets_.try_emplace(b);
-      if (added && !spare_.empty()) {
-        it->second.swap(spare_.back());
-        spare_.pop_back();
-      }
-      it->second.push_back(n);
+      push(n, b);
+      // The rule also tries the candidate times of n's anchors (time 0, so c = w), which push
+      // nothing themselves: those after i's key, with i now upstream, go to their own buckets.
+      const Int3 cn = m.coords(n);
+      for_each_face_neighbour(m, cn.x, cn.y, cn.z, n, [&](Index f, int, int, const LinkLimits& lf) {
+        const std::uint8_t ff = st.flags[L.at(f)];
+        if (!(ff & kFixed) || (ff & kGrabbed)) return;
+        const float cf = lf.w;
+        if (!(t < cf || (t == cf && i < n))) return;
+        const unsigned long long bf = bucket_of(cf, delta);
+        if (bf != b && bf >= processed) push(n, bf);
+      });
     });
   };
   for (Index f : tool) {

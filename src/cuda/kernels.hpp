@@ -280,6 +280,17 @@ HPCM_HD inline void push_neighbours(const PropArgs& a, PropShared& sh, long long
     const unsigned long long b = bucket_of(c, a.delta);
     if (processed >= 0 && b < static_cast<unsigned long long>(processed)) return;
     pend_put(a, sh, static_cast<int>(n), b);
+    // n's anchors' candidate times after i's key, as the CPU (propagate.cpp).
+    int xn, yn, zn;
+    L.coords(n, xn, yn, zn);
+    solver::for_each_face_neighbour(L.nx, L.ny, L.nz, xn, yn, zn, n, [&](long long f, int af, int, long long lf, long long hf) {
+      const std::uint8_t ff = L.flags[f];
+      if (!(ff & kFixed) || (ff & kGrabbed)) return;
+      const float cf = L.link_of(af, lf, hf).w;
+      if (!(t < cf || (t == cf && i < n))) return;
+      const unsigned long long bf = bucket_of(cf, a.delta);
+      if (bf != b && (processed < 0 || bf >= static_cast<unsigned long long>(processed))) pend_put(a, sh, static_cast<int>(n), bf);
+    });
   });
 }
 

@@ -57,7 +57,10 @@ struct WaveRunner {
   /// the frame is then finished with the velocity layer (mode none: X_{t+1} = X+), which
   /// is where the CPU backend takes its X- snapshot for the next frame.
   State wave(const std::vector<Index>& fixed, const std::vector<Vec3>& targets) {
-    std::vector<std::uint8_t> fl(fixed.size(), static_cast<std::uint8_t>(kGrabbed));
+    return wave(fixed, targets, std::vector<std::uint8_t>(fixed.size(), static_cast<std::uint8_t>(kGrabbed)));
+  }
+  /// The same with the FIXED entries' flags (kGrabbed starts the wave, kAnchor holds).
+  State wave(const std::vector<Index>& fixed, const std::vector<Vec3>& targets, const std::vector<std::uint8_t>& fl) {
     backend->apply_control(Control(fixed, targets, fl));
     backend->snapshot();
     last = backend->propagate();
