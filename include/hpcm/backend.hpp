@@ -128,6 +128,7 @@ class Backend {
     upload(m, p, s);
     applied_revision_ = 0;
     link_metrics_.reset();  // the links may be new
+    link_disp_since_ = 0;
   }
   /// The one reload path: the model the backend was loaded with (same object) or the params
   /// changed (ModelChange flags). Materials or anchors: the resident state is reloaded with the
@@ -186,6 +187,18 @@ class Backend {
   virtual void download(State& s) = 0;
   /// Displacements from rest u = X - X0 (State::disp), linear order.
   virtual void download_displacements(std::vector<Vec3>& disp) = 0;
+  /// Brings a host copy up to date: `since` is what the last call returned for this copy (0: the
+  /// copy holds nothing yet). A backend that knows where it wrote copies only those regions
+  /// (the CPU: the bricks written since); the default downloads everything. The result equals
+  /// download() / download_displacements() bit for bit.
+  virtual void download_since(State& s, std::uint64_t& since) {
+    download(s);
+    since = 1;
+  }
+  virtual void download_displacements_since(std::vector<Vec3>& disp, std::uint64_t& since) {
+    download_displacements(disp);
+    since = 1;
+  }
   virtual Vec3 displacement(Index i) = 0;
 
  protected:
@@ -205,7 +218,8 @@ class Backend {
  private:
   std::uint64_t applied_revision_ = 0;  ///< of the installed FIXED set; 0: none installed
   IncrementalMetrics link_metrics_;     ///< FrameRequest::link_violation, measured where the frame moved
-  std::vector<Vec3> link_disp_;         ///< its download, kept so a frame does not allocate one
+  std::vector<Vec3> link_disp_;         ///< its download, kept up to date (download_displacements_since)
+  std::uint64_t link_disp_since_ = 0;
 };
 
 }  // namespace hpcm

@@ -131,6 +131,7 @@ class Simulation {
   std::unique_ptr<Backend> backend_;
   State host_;
   bool host_valid_ = false;
+  std::uint64_t host_since_ = 0;  ///< Backend::download_since's stamp of host_
   std::vector<Index> anchors_;
   std::vector<Index> grabbed_;
   std::vector<Vec3> grab_origin_;
@@ -152,6 +153,7 @@ class Simulation {
   /// Frame-end displacements on the host (of positions_version_ end_pos_version_): the previous
   /// frame's end, from which the speeds of a frame the fold guard changed are taken.
   std::vector<Vec3> end_pos_, previous_end_;
+  std::uint64_t end_pos_since_ = 0, previous_end_since_ = 0;  ///< their download_displacements_since stamps
   std::uint64_t end_pos_version_ = ~std::uint64_t{0};
   /// Downloads the current displacements into end_pos_ unless they are there already.
   const std::vector<Vec3>& frame_end_displacements();

@@ -144,7 +144,7 @@ FrameStats Backend::step(StateHandle in, StateHandle out, const Control& c, cons
   s.chainmail_active_bricks = active_bricks();
   // Untimed: the metric is O(N) and measured again only when positions may have changed.
   if (r.link_violation && (!r.link_violation_known || s.chainmail_active_bricks > 0)) {
-    download_displacements(link_disp_);
+    download_displacements_since(link_disp_, link_disp_since_);
     s.max_link_violation = link_metrics_.max_link_violation(model(), link_disp_);
     s.link_violation_measured = true;
   }

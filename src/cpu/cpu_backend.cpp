@@ -48,6 +48,7 @@ void CpuBackend::upload(const Model& m, const Params& p, const State& s) {
       touched_[static_cast<std::size_t>(grid_.brick_of_index(i))] = 1;
   hot_ = touched_;
   worked_.assign(nb, 0);
+  written_.assign(nb, ++stamp_);  // every brick is new to every host copy
   fixed_ = {};
   still_flags_.assign(static_cast<std::size_t>(m.size()), 0);
   still_targets_pending_ = false;
@@ -82,26 +83,35 @@ void CpuBackend::install_fixed(const Control& c) {
   solver::FixedParts next = solver::FixedParts::split(c.fixed(), c.targets(), c.flags());
   // Elements that may leave the FIXED set: the old tool, and the old still part if it changes.
   std::vector<Index> leaving = fixed_.tool.elements;
-  for (Index i : fixed_.tool.elements) flag_of(i) = still_flags_[static_cast<std::size_t>(i)];
+  for (Index i : fixed_.tool.elements) {
+    flag_of(i) = still_flags_[static_cast<std::size_t>(i)];
+    mark_written(i);
+  }
   if (!(next.still == fixed_.still)) {
     // The anchors changed (rare: a new control from the caller, new params): O(still) work.
     for (Index i : fixed_.still.elements) {
       flag_of(i) = 0;
       still_flags_[static_cast<std::size_t>(i)] = 0;
+      mark_written(i);
       leaving.push_back(i);
     }
     fixed_.still = std::move(next.still);
     const solver::FixedParts::Part& still = fixed_.still;
     for (std::size_t k = 0; k < still.elements.size(); ++k)
       still_flags_[static_cast<std::size_t>(still.elements[k])] = static_cast<std::uint8_t>(kFixed | still.flags[k]);
-    for (Index i : still.elements) flag_of(i) = still_flags_[static_cast<std::size_t>(i)];
+    for (Index i : still.elements) {
+      flag_of(i) = still_flags_[static_cast<std::size_t>(i)];
+      mark_written(i);
+    }
     if (bucket_width_.update(*m_, still.elements)) propagation_.set_bucket_width(bucket_width_.value());
     propagation_.set_still(still.elements);
     still_targets_pending_ = true;
   }
   fixed_.tool = std::move(next.tool);
-  for (std::size_t k = 0; k < fixed_.tool.elements.size(); ++k)
+  for (std::size_t k = 0; k < fixed_.tool.elements.size(); ++k) {
     flag_of(fixed_.tool.elements[k]) = static_cast<std::uint8_t>(kFixed | fixed_.tool.flags[k]);
+    mark_written(fixed_.tool.elements[k]);
+  }
   // Elements released from FIXED (grab released) must be relaxed again: mark their bricks.
   for (Index i : leaving)
     if (!(flag_of(i) & kFixed)) {
@@ -193,6 +203,41 @@ RestoreStats CpuBackend::restore(bool frame_end) {
 void CpuBackend::velocity_layer(SpeedStats* speeds) {
   layer_.apply(st_, k_, p_.solver.sleep ? p_.dynamics.sleep_speed : 0.0f, !p_.solver.sleep, touched_, hot_, unchecked_,
                worked_, speeds, *pool_);
+}
+
+void CpuBackend::stamp_written() {
+  ++stamp_;
+  for (std::size_t b = 0; b < written_.size(); ++b)
+    if (worked_[b] || touched_[b]) written_[b] = stamp_;
+}
+
+const std::vector<Index>& CpuBackend::written_since(std::uint64_t since) {
+  stamp_written();
+  since_list_.clear();
+  for (std::size_t b = 0; b < written_.size(); ++b)
+    if (written_[b] > since) since_list_.push_back(static_cast<Index>(b));
+  return since_list_;
+}
+
+void CpuBackend::download_since(State& s, std::uint64_t& since) {
+  const std::size_t n = static_cast<std::size_t>(m_->size());
+  if (since == 0 || s.disp.size() != n || s.vel.size() != n || s.time.size() != n || s.flags.size() != n) {
+    stamp_written();
+    st_.store_state(s, *pool_);
+  } else {
+    st_.store_state(s, grid_, written_since(since), *pool_);
+  }
+  since = stamp_;
+}
+
+void CpuBackend::download_displacements_since(std::vector<Vec3>& disp, std::uint64_t& since) {
+  if (since == 0 || disp.size() != static_cast<std::size_t>(m_->size())) {
+    stamp_written();
+    st_.store_displacements(disp, *pool_);
+  } else {
+    st_.store_displacements(disp, grid_, written_since(since), *pool_);
+  }
+  since = stamp_;
 }
 
 Index CpuBackend::active_bricks() const { return static_cast<Index>(std::count(worked_.begin(), worked_.end(), 1)); }

@@ -42,6 +42,9 @@ class CpuBackend final : public Backend {
   Index active_elements() const override;
   void download(State& s) override { st_.store_state(s, *pool_); }
   void download_displacements(std::vector<Vec3>& disp) override { st_.store_displacements(disp, *pool_); }
+  /// Copies only the bricks written since `since` (their stamp, written_).
+  void download_since(State& s, std::uint64_t& since) override;
+  void download_displacements_since(std::vector<Vec3>& disp, std::uint64_t& since) override;
   Vec3 displacement(Index i) override { return st_.displacement(i); }
 
   /// The SIMD kernels in use ("avx512", "avx2" or "sse2").
@@ -57,7 +60,10 @@ class CpuBackend final : public Backend {
   void upload(const Model& m, const Params& p, const State& s) override;
   void params_changed(const Params& p) override;
   void install_fixed(const Control& c) override;
-  void begin_frame() override { std::fill(worked_.begin(), worked_.end(), 0); }
+  void begin_frame() override {
+    stamp_written();  // the last frame's work, before its record is cleared
+    std::fill(worked_.begin(), worked_.end(), 0);
+  }
   void phase_begin(Phase p) override { phase_[static_cast<int>(p)][0] = std::chrono::steady_clock::now(); }
   void phase_end(Phase p) override { phase_[static_cast<int>(p)][1] = std::chrono::steady_clock::now(); }
   double phase_ms(Phase p) override {
@@ -67,6 +73,12 @@ class CpuBackend final : public Backend {
 
  private:
   void mark_all(std::vector<std::uint8_t>& flags) { std::fill(flags.begin(), flags.end(), 1); }
+  /// Every stage writes only bricks it marks worked or touched: those get a new stamp.
+  void stamp_written();
+  /// The bricks written since `since` (stamp_written() first), into since_list_.
+  const std::vector<Index>& written_since(std::uint64_t since);
+  /// A write outside the stages (flags of a new FIXED set): element i's brick gets the next stamp.
+  void mark_written(Index i) { written_[static_cast<std::size_t>(grid_.brick_of_index(i))] = stamp_ + 1; }
   /// restore_links(); with `frame_end`, X- follows every element it moves.
   RestoreStats restore(bool frame_end);
 
@@ -82,6 +94,9 @@ class CpuBackend final : public Backend {
   bool still_targets_pending_ = false;     ///< the still part's targets are applied by the next propagate()
   std::vector<std::uint8_t> touched_, hot_, unchecked_;
   std::vector<std::uint8_t> worked_;  ///< bricks any stage processed this frame
+  std::vector<std::uint64_t> written_;  ///< per brick: stamp of its last write (download_since)
+  std::uint64_t stamp_ = 1;             ///< grows with every stamp_written(), never reset (not by a load either)
+  std::vector<Index> since_list_;
   std::unique_ptr<WorkerPool> pool_;
   Propagation propagation_;
   solver::BucketWidth bucket_width_;  ///< of the installed FIXED set

@@ -24,6 +24,22 @@ void for_each_element(const Layout& lay, WorkerPool& pool, F f) {
   });
 }
 
+/// f(u, k) for every element of the listed bricks, a brick per work item.
+template <class F>
+void for_each_element_of(const Layout& lay, const solver::BrickGrid& grid, const std::vector<Index>& bricks,
+                         WorkerPool& pool, F f) {
+  const int nx = lay.dims.x, ny = lay.dims.y;
+  pool.run(static_cast<std::int64_t>(bricks.size()), [&](std::int64_t j) {
+    Int3 lo, hi;
+    grid.range(bricks[static_cast<std::size_t>(j)], lo, hi);
+    for (int z = lo.z; z < hi.z; ++z)
+      for (int y = lo.y; y < hi.y; ++y) {
+        const Index i0 = static_cast<Index>(nx) * (y + static_cast<Index>(ny) * z);
+        for (int x = lo.x; x < hi.x; ++x) f(static_cast<std::size_t>(i0 + x), static_cast<std::size_t>(lay.at(x, y, z)));
+      }
+  });
+}
+
 }  // namespace
 
 void Storage::load(const Model& m, const State& s, WorkerPool& pool) {
@@ -68,6 +84,22 @@ void Storage::store_state(State& s, WorkerPool& pool) const {
   s.time.resize(n);
   s.flags.resize(n);
   for_each_element(lay, pool, [&](std::size_t u, std::size_t k) {
+    s.vel[u] = Vec3{v[0][k], v[1][k], v[2][k]};
+    s.time[u] = time[k];
+    s.flags[u] = flags[k];
+  });
+}
+
+void Storage::store_displacements(std::vector<Vec3>& disp, const solver::BrickGrid& grid,
+                                  const std::vector<Index>& bricks, WorkerPool& pool) const {
+  for_each_element_of(lay, grid, bricks, pool,
+                      [&](std::size_t u, std::size_t k) { disp[u] = Vec3{p[0][k], p[1][k], p[2][k]}; });
+}
+
+void Storage::store_state(State& s, const solver::BrickGrid& grid, const std::vector<Index>& bricks,
+                          WorkerPool& pool) const {
+  for_each_element_of(lay, grid, bricks, pool, [&](std::size_t u, std::size_t k) {
+    s.disp[u] = Vec3{p[0][k], p[1][k], p[2][k]};
     s.vel[u] = Vec3{v[0][k], v[1][k], v[2][k]};
     s.time[u] = time[k];
     s.flags[u] = flags[k];

@@ -24,6 +24,7 @@
 #include "hpcm/model.hpp"
 #include "hpcm/state.hpp"
 #include "cpu/worker_pool.hpp"
+#include "solver/bricks.hpp"
 
 namespace hpcm::cpu {
 
@@ -123,6 +124,10 @@ struct Storage {
   /// Displacements and velocities back in linear order.
   void store_displacements(std::vector<Vec3>& disp, WorkerPool& pool) const;
   void store_state(State& s, WorkerPool& pool) const;
+  /// The same for the elements of `bricks` only (the host copies already hold the others).
+  void store_displacements(std::vector<Vec3>& disp, const solver::BrickGrid& grid, const std::vector<Index>& bricks,
+                           WorkerPool& pool) const;
+  void store_state(State& s, const solver::BrickGrid& grid, const std::vector<Index>& bricks, WorkerPool& pool) const;
   Vec3 displacement(Index linear) const {
     const Index k = lay.at(linear);
     return {p[0][k], p[1][k], p[2][k]};

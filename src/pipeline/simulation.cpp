@@ -208,7 +208,7 @@ void Simulation::push_fixed() {
 
 const std::vector<Vec3>& Simulation::frame_end_displacements() {
   if (end_pos_version_ != positions_version_) {
-    backend_->download_displacements(end_pos_);
+    backend_->download_displacements_since(end_pos_, end_pos_since_);
     end_pos_version_ = positions_version_;
   }
   return end_pos_;
@@ -244,6 +244,7 @@ FrameReport Simulation::step(const StepOptions& opt) {
   if (host_speeds) {
     frame_end_displacements();
     previous_end_.swap(end_pos_);  // X_end(t-1); end_pos_ is free for this frame's end
+    std::swap(previous_end_since_, end_pos_since_);
     end_pos_version_ = ~std::uint64_t{0};
   }
   r.frame = frame_;
@@ -310,7 +311,7 @@ FrameReport Simulation::step(const StepOptions& opt) {
 
 const State& Simulation::state() {
   if (!host_valid_) {
-    backend_->download(host_);
+    backend_->download_since(host_, host_since_);
     host_valid_ = true;
   }
   return host_;

@@ -6,6 +6,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <cstring>
 #include <functional>
 #include <limits>
 #include <memory>
@@ -218,6 +219,78 @@ TEST(CpuBackendRobustness, ExtremeWRangeKeepsThePropagationSmall) {
   EXPECT_LT(peak_resident_mb() - before, 64.0) << "the propagation grew the process by this much";
   for (const Vec3& x : sim.state().disp)
     for (int a = 0; a < 3; ++a) ASSERT_TRUE(std::isfinite(x[a]));
+}
+
+
+// download_since copies only the bricks written since the host copy's stamp. Over pulls, a
+// lateral grab after a long idle spell (where the frame-end fold guard acts), releases and idle frames, two copies kept
+// at different cadences must equal the full download bit for bit every time (fails when a stage
+// writes a brick without marking it, or a new FIXED set's flags are not stamped).
+TEST(CpuBackendRobustness, DownloadsSinceAStampEqualTheFullDownload) {
+  Params p;
+  PhantomOptions o;
+  o.dims = {40, 36, 20};
+  const Model m = build_model(make_phantom(o), p);
+  Simulation sim(m, p);
+  Backend& b = sim.backend();
+  const Index centre = paper_grab_centre(m);
+  const Int3 c = m.coords(centre);
+  const Index lateral = m.index(c.x + 6, c.y + 2, c.z + 3);
+  auto same_bits = [](const auto& a, const auto& b) {
+    return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(a[0])) == 0;
+  };
+  State every, third;
+  std::vector<Vec3> disp_every;
+  std::uint64_t since_every = 0, since_third = 0, since_disp = 0;
+  int copied_partly = 0;
+  for (int f = 0; f < 200; ++f) {
+    SCOPED_TRACE("frame " + std::to_string(f));
+    if (f == 0) sim.grab(centre);
+    if (f < 12) sim.move_tool({0.0f, -0.5f * static_cast<float>(f + 1), 0.0f});
+    if (f == 24) sim.release();
+    // After a long idle spell (every brick asleep), a lateral grab.
+    if (f == 150) sim.grab(lateral);
+    if (f >= 150 && f < 160) sim.move_tool({0.4f * static_cast<float>(f - 149), 0.0f, 0.2f * static_cast<float>(f - 149)});
+    if (f == 170) sim.release();
+    if (f == 0 || f == 24 || f == 150 || f == 170) {
+      // A new FIXED set is installed at once (flags), before the frame runs.
+      State now;
+      b.download(now);
+      b.download_since(every, since_every);
+      ASSERT_TRUE(same_bits(every.flags, now.flags)) << "flags of the new FIXED set";
+    }
+    sim.step();
+    State full;
+    b.download(full);
+    b.download_since(every, since_every);
+    ++copied_partly;
+    ASSERT_TRUE(same_bits(every.disp, full.disp)) << "displacements";
+    ASSERT_TRUE(same_bits(every.vel, full.vel)) << "velocities";
+    ASSERT_TRUE(same_bits(every.time, full.time)) << "times";
+    ASSERT_TRUE(same_bits(every.flags, full.flags)) << "flags";
+    if (f % 3 == 0) {
+      b.download_since(third, since_third);
+      ASSERT_TRUE(same_bits(third.disp, full.disp) && same_bits(third.vel, full.vel) && same_bits(third.time, full.time) &&
+                  same_bits(third.flags, full.flags))
+          << "the copy kept every third frame";
+    }
+    b.download_displacements_since(disp_every, since_disp);
+    ASSERT_TRUE(same_bits(disp_every, full.disp)) << "displacements alone";
+  }
+  EXPECT_EQ(copied_partly, 200);
+  // A new FIXED set changes flags in bricks no stage has touched: the copy must see them.
+  auto direct = make_backend(BackendKind::Cpu);
+  direct->load(m, p, State::rest(m));
+  State copy;
+  std::uint64_t since = 0;
+  direct->download_since(copy, since);
+  const Index corner = m.index(m.dims.x - 1, m.dims.y - 1, m.dims.z - 1);
+  direct->apply_control(Control({corner, 0}, {Vec3{}, Vec3{}}, {kAnchor, kGrabbed}));
+  State now;
+  direct->download(now);
+  direct->download_since(copy, since);
+  EXPECT_TRUE(same_bits(copy.flags, now.flags)) << "flags of a FIXED set installed where nothing moved";
+  EXPECT_NE(now.flags[static_cast<std::size_t>(corner)], 0);
 }
 
 }  // namespace
