@@ -143,13 +143,17 @@ std::vector<int> IncrementalMetrics::dirty_blocks(const Model& m, const std::vec
   std::vector<std::uint8_t> changed(static_cast<std::size_t>(count), 0);
   run_parts(nb.z, pass_parts(nb.z), [&](int, int k0, int k1) {
     for (int z = k0 * kBlock; z < std::min(k1 * kBlock, d.z); ++z)
-      for (int y = 0; y < d.y; ++y)
+      for (int y = 0; y < d.y; ++y) {
+        // Most rows are still: one comparison of the whole row first.
+        const auto row = static_cast<std::size_t>(m.index(0, y, z));
+        if (std::memcmp(&disp[row], &seen_[row], sizeof(Vec3) * static_cast<std::size_t>(d.x)) == 0) continue;
         for (int x = 0; x < d.x; ++x) {
-          const auto i = static_cast<std::size_t>(m.index(x, y, z));
+          const std::size_t i = row + static_cast<std::size_t>(x);
           if (std::memcmp(&disp[i], &seen_[i], sizeof(Vec3)) == 0) continue;
           seen_[i] = disp[i];
           changed[static_cast<std::size_t>(x / kBlock + nb.x * (y / kBlock + nb.y * (z / kBlock)))] = 1;
         }
+      }
   });
   // An element is an end of links and a corner of cells owned by elements up to one lower
   // along each axis: its block and the blocks below it are dirty.
