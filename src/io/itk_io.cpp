@@ -832,21 +832,29 @@ void verify_written(TImage* img, const std::string& written, Format f, const std
     throw Error(failed + "differs from " + std::string(what) + " it was meant to hold");
 }
 
-template <class TImage>
-void write_image(TImage* img, const std::string& path, const std::vector<Format>& allowed, const char* what) {
+// The format of `path`, one of `allowed` for writing `what`.
+Format output_format(const std::string& path, const std::vector<Format>& allowed, const char* what) {
   const Format f = detail::format_of(path);
   if (std::find(allowed.begin(), allowed.end(), f) == allowed.end()) {
     std::string list;
     for (Format a : allowed) list += (list.empty() ? "" : ", ") + detail::extension_of(a);
     throw Error(path + ": unsupported extension for " + what + " (supported: " + list + ")");
   }
+  return f;
+}
+
+// Single-file formats are compressed; detached ones (.nhdr, .mhd) keep raw data.
+bool compressed(Format f) { return f == Format::NiftiGz || f == Format::Nrrd || f == Format::Mha; }
+
+template <class TImage>
+void write_image(TImage* img, const std::string& path, const std::vector<Format>& allowed, const char* what) {
+  const Format f = output_format(path, allowed, what);
   AtomicWrite aw(path);
   auto writer = itk::ImageFileWriter<TImage>::New();
   writer->SetImageIO(make_io(f));
   writer->SetFileName(aw.temp_path());
   writer->SetInput(img);
-  // Single-file formats are compressed; detached ones (.nhdr, .mhd) keep raw data.
-  writer->SetUseCompression(f == Format::NiftiGz || f == Format::Nrrd || f == Format::Mha);
+  writer->SetUseCompression(compressed(f));
   try {
     writer->Update();
   } catch (const itk::ExceptionObject& e) {
@@ -1086,23 +1094,90 @@ void write_pullback_field(const Grid& g, const std::vector<float>& pullback_mm, 
               "a pull-back displacement field");
 }
 
+// Label maps are read and written as the file stores them, byte for byte, through the ImageIO
+// alone: an ITK reader and writer per integer type (ten of each) doubled this file's compile time.
 namespace {
-// Calls f(T{}) with the integer type of an ITK component type; false for any other type.
-template <class F>
-bool with_integer_type(itk::IOComponentEnum c, F&& f) {
+bool is_integer(itk::IOComponentEnum c) {
+  using C = itk::IOComponentEnum;
   switch (c) {
-    case itk::IOComponentEnum::UCHAR: f((unsigned char){}); return true;
-    case itk::IOComponentEnum::CHAR: f((signed char){}); return true;
-    case itk::IOComponentEnum::USHORT: f((unsigned short){}); return true;
-    case itk::IOComponentEnum::SHORT: f(short{}); return true;
-    case itk::IOComponentEnum::UINT: f((unsigned int){}); return true;
-    case itk::IOComponentEnum::INT: f(int{}); return true;
-    case itk::IOComponentEnum::ULONG: f((unsigned long){}); return true;
-    case itk::IOComponentEnum::LONG: f(long{}); return true;
-    case itk::IOComponentEnum::ULONGLONG: f((unsigned long long){}); return true;
-    case itk::IOComponentEnum::LONGLONG: f((long long){}); return true;
+    case C::UCHAR: case C::CHAR: case C::USHORT: case C::SHORT: case C::UINT:
+    case C::INT: case C::ULONG: case C::LONG: case C::ULONGLONG: case C::LONGLONG: return true;
     default: return false;
   }
+}
+
+// The voxels of the first 3-D volume of a scalar file whose information `io` has read, in the
+// file's own component type (native byte order), as ImageFileReader reads them for an image of
+// that type: the whole file (non-streaming IOs read all of it), of which the first volume is kept.
+std::vector<unsigned char> read_first_volume(itk::ImageIOBase& io) {
+  const unsigned nd = io.GetNumberOfDimensions();
+  itk::ImageIORegion region(nd);
+  std::size_t voxels = 1, volume = 1;
+  for (unsigned a = 0; a < nd; ++a) {
+    region.SetIndex(a, 0);
+    region.SetSize(a, io.GetDimensions(a));
+    voxels *= io.GetDimensions(a);
+    if (a < 3) volume *= io.GetDimensions(a);
+  }
+  io.SetIORegion(region);
+  std::vector<unsigned char> bytes(voxels * io.GetComponentSize());
+  io.Read(bytes.data());
+  bytes.resize(volume * io.GetComponentSize());
+  return bytes;
+}
+
+// Writes a label map's voxels in its own integer type, as ImageFileWriter writes an itk::Image
+// of that type (one piece), then reads the file back and compares it bit for bit.
+void write_label_file(const LabelMap& map, itk::IOComponentEnum type, const std::string& path) {
+  const char* what = "a label map";
+  const Format f = output_format(path, kVolumeFormats, what);
+  AtomicWrite aw(path);
+  const Grid& g = map.grid;
+  const int dims[3] = {g.dims.x, g.dims.y, g.dims.z};
+  itk::ImageIOBase::Pointer io = make_io(f);
+  io->SetNumberOfDimensions(3);
+  itk::ImageIORegion region(3);
+  for (unsigned a = 0; a < 3; ++a) {
+    io->SetDimensions(a, dims[a]);
+    io->SetSpacing(a, g.spacing[a]);
+    io->SetOrigin(a, g.origin[a]);
+    io->SetDirection(a, std::vector<double>{g.direction[a], g.direction[3 + a], g.direction[6 + a]});  // column a
+    region.SetIndex(a, 0);
+    region.SetSize(a, dims[a]);
+  }
+  io->SetPixelType(itk::IOPixelEnum::SCALAR);
+  io->SetComponentType(type);
+  io->SetNumberOfComponents(1);
+  if (io->GetComponentSize() != static_cast<std::size_t>(map.bytes))
+    throw Error(path + ": label map: " + std::to_string(map.bytes) + " bytes per voxel, but " + map.component_type +
+                " has " + std::to_string(io->GetComponentSize()));
+  io->SetUseCompression(compressed(f));
+  io->SetFileName(aw.temp_path());
+  io->SetIORegion(region);
+  try {
+    io->Write(map.data.data());
+  } catch (const itk::ExceptionObject& e) {
+    throw Error(path + ": cannot write " + what + ": " + one_line(e));
+  }
+  aw.sync();
+  const std::string failed = path + ": write failed (disk full?): read back, the written file ";
+  itk::ImageIOBase::Pointer back = make_io(f);
+  std::vector<unsigned char> back_bytes;
+  try {
+    back->SetFileName(aw.temp_path());
+    back->ReadImageInformation();
+    if (back->GetNumberOfDimensions() < 3) throw Error(failed + "has another size than " + std::string(what));
+    for (unsigned a = 0; a < 3; ++a)
+      if (back->GetDimensions(a) != static_cast<unsigned>(dims[a]))
+        throw Error(failed + "has another size than " + std::string(what));
+    if (back->GetNumberOfComponents() != 1 || back->GetComponentSize() != io->GetComponentSize())
+      throw Error(failed + "has another size than " + std::string(what));
+    back_bytes = read_first_volume(*back);
+  } catch (const itk::ExceptionObject& e) {
+    throw Error(failed + "is unreadable: " + one_line(e));
+  }
+  if (back_bytes != map.data) throw Error(failed + "differs from " + std::string(what) + " it was meant to hold");
+  aw.commit();
 }
 }  // namespace
 
@@ -1140,28 +1215,24 @@ LabelMap read_label_map(const std::string& path) {
     LabelMap map;
     map.source = path;
     map.component_type = itk::ImageIOBase::GetComponentTypeAsString(io->GetComponentType());
-    const bool integer = with_integer_type(io->GetComponentType(), [&](auto zero) {
-      using T = decltype(zero);
-      using Img = itk::Image<T, 3>;
-      auto reader = itk::ImageFileReader<Img>::New();
-      reader->SetImageIO(io);
-      reader->SetFileName(path);
-      reader->Update();
-      Img* img = reader->GetOutput();
-      const auto size = img->GetLargestPossibleRegion().GetSize();
-      map.grid.dims = {int(size[0]), int(size[1]), int(size[2])};
-      for (int a = 0; a < 3; ++a) {
-        map.grid.spacing[a] = img->GetSpacing()[a];
-        map.grid.origin[a] = img->GetOrigin()[a];
-        for (int c = 0; c < 3; ++c) map.grid.direction[a * 3 + c] = img->GetDirection()(a, c);
-      }
-      map.bytes = sizeof(T);
-      const auto* p = reinterpret_cast<const unsigned char*>(img->GetBufferPointer());
-      map.data.assign(p, p + map.grid.size() * sizeof(T));
-    });
-    if (!integer)
+    if (!is_integer(io->GetComponentType()))
       throw Error(path + ": label map: voxels are " + map.component_type +
                   "; a label map needs an integer type (uint8/int8 .. uint64/int64): labels are never interpolated");
+    // The grid as ITK's reader gives it to an image (negative spacing flips the axis, ...).
+    auto reader = itk::ImageFileReader<FloatImage>::New();
+    reader->SetImageIO(io);
+    reader->SetFileName(path);
+    reader->UpdateOutputInformation();
+    const FloatImage* img = reader->GetOutput();
+    const auto size = img->GetLargestPossibleRegion().GetSize();
+    map.grid.dims = {int(size[0]), int(size[1]), int(size[2])};
+    for (int a = 0; a < 3; ++a) {
+      map.grid.spacing[a] = img->GetSpacing()[a];
+      map.grid.origin[a] = img->GetOrigin()[a];
+      for (int c = 0; c < 3; ++c) map.grid.direction[a * 3 + c] = img->GetDirection()(a, c);
+    }
+    map.bytes = static_cast<int>(io->GetComponentSize());
+    map.data = read_first_volume(*io);
     if (nifti_grid) {
       map.grid.spacing = nifti_grid->spacing;
       map.grid.origin = nifti_grid->origin;
@@ -1180,16 +1251,8 @@ void write_label_values(const LabelMap& map, const std::string& path) {
     throw Error(path + ": label map: " + std::to_string(map.data.size()) + " bytes for a grid of " +
                 std::to_string(map.grid.size()) + " voxels");
   const auto type = itk::ImageIOBase::GetComponentTypeFromString(map.component_type);
-  const bool integer = with_integer_type(type, [&](auto zero) {
-    using T = decltype(zero);
-    using Img = itk::Image<T, 3>;
-    const Grid& g = map.grid;
-    auto img = make_image<Img>(g.dims, g.spacing, g.origin, g.direction);
-    img->Allocate();
-    std::memcpy(static_cast<void*>(img->GetBufferPointer()), map.data.data(), map.data.size());
-    write_image(img.GetPointer(), path, kVolumeFormats, "a label map");
-  });
-  if (!integer) throw Error(path + ": label map: " + map.component_type + " is not an integer type");
+  if (!is_integer(type)) throw Error(path + ": label map: " + map.component_type + " is not an integer type");
+  write_label_file(map, type, path);
 }
 
 namespace detail {
