@@ -809,27 +809,60 @@ class AtomicWrite {
   fs::path tmpdir_;
 };
 
+// The voxels of the first 3-D volume of a file whose information `io` has read, as the file
+// stores them (native byte order, components interleaved): what ImageFileReader reads for an
+// image of the file's own pixel type. The whole file is read (non-streaming IOs read all of
+// it), then cut to its first volume.
+std::vector<unsigned char> read_first_volume(itk::ImageIOBase& io) {
+  const unsigned nd = io.GetNumberOfDimensions();
+  itk::ImageIORegion region(nd);
+  std::size_t voxels = 1, volume = 1;
+  for (unsigned a = 0; a < nd; ++a) {
+    region.SetIndex(a, 0);
+    region.SetSize(a, io.GetDimensions(a));
+    voxels *= io.GetDimensions(a);
+    if (a < 3) volume *= io.GetDimensions(a);
+  }
+  io.SetIORegion(region);
+  const std::size_t pixel_bytes = io.GetComponentSize() * io.GetNumberOfComponents();
+  std::vector<unsigned char> bytes(voxels * pixel_bytes);
+  io.Read(bytes.data());
+  bytes.resize(volume * pixel_bytes);
+  return bytes;
+}
+
 // Reads a just-written file back and compares it with what was meant to be written, bit for
 // bit: a file cut short (disk full, a file size limit) whose writer still reported success is
-// an error, never a result.
-template <class TImage>
-void verify_written(TImage* img, const std::string& written, Format f, const std::string& path, const char* what) {
+// an error, never a result. Through the ImageIO alone: an ITK reader per written pixel type
+// cost more compile time than the rest of this check.
+void verify_written(const void* data, const std::array<std::size_t, 3>& dims, unsigned components,
+                    std::size_t component_bytes, const std::string& written, Format f, const std::string& path,
+                    const char* what) {
   const std::string failed = path + ": write failed (disk full?): read back, the written file ";
-  auto reader = itk::ImageFileReader<TImage>::New();
-  reader->SetImageIO(make_io(f));
-  reader->SetFileName(written);
+  itk::ImageIOBase::Pointer back = make_io(f);
+  std::vector<unsigned char> bytes;
   try {
-    reader->Update();
+    back->SetFileName(written);
+    back->ReadImageInformation();
+    bool same_size = back->GetNumberOfDimensions() >= 3 && back->GetNumberOfComponents() == components &&
+                     back->GetComponentSize() == component_bytes;
+    for (unsigned a = 0; same_size && a < 3; ++a) same_size = back->GetDimensions(a) == dims[a];
+    if (!same_size) throw Error(failed + "has another size than " + std::string(what));
+    bytes = read_first_volume(*back);
   } catch (const itk::ExceptionObject& e) {
     throw Error(failed + "is unreadable: " + one_line(e));
   }
-  TImage* back = reader->GetOutput();
-  if (back->GetBufferedRegion().GetSize() != img->GetBufferedRegion().GetSize() ||
-      back->GetNumberOfComponentsPerPixel() != img->GetNumberOfComponentsPerPixel())
-    throw Error(failed + "has another size than " + std::string(what));
-  const std::size_t bytes = img->GetPixelContainer()->Size() * sizeof(*img->GetBufferPointer());
-  if (std::memcmp(back->GetBufferPointer(), img->GetBufferPointer(), bytes) != 0)
+  if (bytes.size() != dims[0] * dims[1] * dims[2] * components * component_bytes ||
+      std::memcmp(bytes.data(), data, bytes.size()) != 0)
     throw Error(failed + "differs from " + std::string(what) + " it was meant to hold");
+}
+
+template <class TImage>
+void verify_written(TImage* img, const std::string& written, Format f, const std::string& path, const char* what) {
+  const auto size = img->GetBufferedRegion().GetSize();
+  const unsigned components = img->GetNumberOfComponentsPerPixel();
+  verify_written(img->GetBufferPointer(), {size[0], size[1], size[2]}, components,
+                 sizeof(*img->GetBufferPointer()) / components, written, f, path, what);
 }
 
 // The format of `path`, one of `allowed` for writing `what`.
@@ -1106,26 +1139,6 @@ bool is_integer(itk::IOComponentEnum c) {
   }
 }
 
-// The voxels of the first 3-D volume of a scalar file whose information `io` has read, in the
-// file's own component type (native byte order), as ImageFileReader reads them for an image of
-// that type: the whole file (non-streaming IOs read all of it), of which the first volume is kept.
-std::vector<unsigned char> read_first_volume(itk::ImageIOBase& io) {
-  const unsigned nd = io.GetNumberOfDimensions();
-  itk::ImageIORegion region(nd);
-  std::size_t voxels = 1, volume = 1;
-  for (unsigned a = 0; a < nd; ++a) {
-    region.SetIndex(a, 0);
-    region.SetSize(a, io.GetDimensions(a));
-    voxels *= io.GetDimensions(a);
-    if (a < 3) volume *= io.GetDimensions(a);
-  }
-  io.SetIORegion(region);
-  std::vector<unsigned char> bytes(voxels * io.GetComponentSize());
-  io.Read(bytes.data());
-  bytes.resize(volume * io.GetComponentSize());
-  return bytes;
-}
-
 // Writes a label map's voxels in its own integer type, as ImageFileWriter writes an itk::Image
 // of that type (one piece), then reads the file back and compares it bit for bit.
 void write_label_file(const LabelMap& map, itk::IOComponentEnum type, const std::string& path) {
@@ -1160,23 +1173,8 @@ void write_label_file(const LabelMap& map, itk::IOComponentEnum type, const std:
     throw Error(path + ": cannot write " + what + ": " + one_line(e));
   }
   aw.sync();
-  const std::string failed = path + ": write failed (disk full?): read back, the written file ";
-  itk::ImageIOBase::Pointer back = make_io(f);
-  std::vector<unsigned char> back_bytes;
-  try {
-    back->SetFileName(aw.temp_path());
-    back->ReadImageInformation();
-    if (back->GetNumberOfDimensions() < 3) throw Error(failed + "has another size than " + std::string(what));
-    for (unsigned a = 0; a < 3; ++a)
-      if (back->GetDimensions(a) != static_cast<unsigned>(dims[a]))
-        throw Error(failed + "has another size than " + std::string(what));
-    if (back->GetNumberOfComponents() != 1 || back->GetComponentSize() != io->GetComponentSize())
-      throw Error(failed + "has another size than " + std::string(what));
-    back_bytes = read_first_volume(*back);
-  } catch (const itk::ExceptionObject& e) {
-    throw Error(failed + "is unreadable: " + one_line(e));
-  }
-  if (back_bytes != map.data) throw Error(failed + "differs from " + std::string(what) + " it was meant to hold");
+  verify_written(map.data.data(), {std::size_t(dims[0]), std::size_t(dims[1]), std::size_t(dims[2])}, 1,
+                 io->GetComponentSize(), aw.temp_path(), f, path, what);
   aw.commit();
 }
 }  // namespace
