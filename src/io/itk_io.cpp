@@ -22,7 +22,6 @@
 #include <itkGDCMImageIO.h>
 #include <itkImage.h>
 #include <itkImageFileReader.h>
-#include <itkImageFileWriter.h>
 #include <itkMetaDataObject.h>
 #include <itkMetaImageIO.h>
 #include <itkNiftiImageIO.h>
@@ -857,14 +856,6 @@ void verify_written(const void* data, const std::array<std::size_t, 3>& dims, un
     throw Error(failed + "differs from " + std::string(what) + " it was meant to hold");
 }
 
-template <class TImage>
-void verify_written(TImage* img, const std::string& written, Format f, const std::string& path, const char* what) {
-  const auto size = img->GetBufferedRegion().GetSize();
-  const unsigned components = img->GetNumberOfComponentsPerPixel();
-  verify_written(img->GetBufferPointer(), {size[0], size[1], size[2]}, components,
-                 sizeof(*img->GetBufferPointer()) / components, written, f, path, what);
-}
-
 // The format of `path`, one of `allowed` for writing `what`.
 Format output_format(const std::string& path, const std::vector<Format>& allowed, const char* what) {
   const Format f = detail::format_of(path);
@@ -879,23 +870,83 @@ Format output_format(const std::string& path, const std::vector<Format>& allowed
 // Single-file formats are compressed; detached ones (.nhdr, .mhd) keep raw data.
 bool compressed(Format f) { return f == Format::NiftiGz || f == Format::Nrrd || f == Format::Mha; }
 
-template <class TImage>
-void write_image(TImage* img, const std::string& path, const std::vector<Format>& allowed, const char* what) {
-  const Format f = output_format(path, allowed, what);
+// The origin and direction as ImageFileWriter writes them from an itk::Image given these, so that
+// the files stay byte for byte what they were (signs of zero included): the image keeps its
+// initial identity entry (and its origin 0) where the value equals it, and the writer's origin is
+// the physical point of index 0, origin + (direction * diag(spacing)) * 0, summed as ITK does.
+struct WrittenGeometry {
+  std::array<double, 3> origin;
+  std::array<double, 9> direction;  ///< row-major
+};
+WrittenGeometry as_itk_writes(const std::array<double, 3>& spacing, const std::array<double, 3>& origin,
+                              const std::array<double, 9>& direction) {
+  WrittenGeometry w;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) {
+      const double initial = r == c ? 1.0 : 0.0;
+      w.direction[r * 3 + c] = direction[r * 3 + c] == initial ? initial : direction[r * 3 + c];
+    }
+  const bool zero_origin = origin[0] == 0.0 && origin[1] == 0.0 && origin[2] == 0.0;
+  for (int r = 0; r < 3; ++r) {
+    w.origin[r] = zero_origin ? 0.0 : origin[r];
+    for (int c = 0; c < 3; ++c) {
+      double m = w.direction[r * 3] * (c == 0 ? spacing[0] : 0.0);
+      for (int k = 1; k < 3; ++k) m += w.direction[r * 3 + k] * (k == c ? spacing[c] : 0.0);
+      w.origin[r] += m * 0.0;
+    }
+  }
+  return w;
+}
+
+// Writes voxels whose pixel type `io` has been given, as ImageFileWriter writes an itk::Image in
+// one piece, through the format's ImageIO alone (a writer per pixel type cost more compile
+// time than the rest of this file's writing), then reads the file back and compares it.
+// `direction` is row-major (row a, column c: direction[a * 3 + c]).
+void write_voxels(itk::ImageIOBase& io, Format f, const std::array<std::size_t, 3>& dims,
+                  const std::array<double, 3>& spacing, const std::array<double, 3>& origin,
+                  const std::array<double, 9>& direction, const itk::MetaDataDictionary& dictionary,
+                  const void* data, const std::string& path, const char* what) {
   AtomicWrite aw(path);
-  auto writer = itk::ImageFileWriter<TImage>::New();
-  writer->SetImageIO(make_io(f));
-  writer->SetFileName(aw.temp_path());
-  writer->SetInput(img);
-  writer->SetUseCompression(compressed(f));
+  const WrittenGeometry w = as_itk_writes(spacing, origin, direction);
+  io.SetNumberOfDimensions(3);
+  itk::ImageIORegion region(3);
+  for (unsigned a = 0; a < 3; ++a) {
+    io.SetDimensions(a, dims[a]);
+    io.SetSpacing(a, spacing[a]);
+    io.SetOrigin(a, w.origin[a]);
+    io.SetDirection(a, std::vector<double>{w.direction[a], w.direction[3 + a], w.direction[6 + a]});  // column a
+    region.SetIndex(a, 0);
+    region.SetSize(a, dims[a]);
+  }
+  io.SetUseCompression(compressed(f));
+  io.SetMetaDataDictionary(dictionary);
+  io.SetFileName(aw.temp_path());
+  io.SetIORegion(region);
   try {
-    writer->Update();
+    io.Write(data);
   } catch (const itk::ExceptionObject& e) {
     throw Error(path + ": cannot write " + what + ": " + one_line(e));
   }
   aw.sync();
-  verify_written(img, aw.temp_path(), f, path, what);
+  verify_written(data, dims, io.GetNumberOfComponents(), io.GetComponentSize(), aw.temp_path(), f, path, what);
   aw.commit();
+}
+
+template <class TImage>
+void write_image(TImage* img, const std::string& path, const std::vector<Format>& allowed, const char* what) {
+  const Format f = output_format(path, allowed, what);
+  itk::ImageIOBase::Pointer io = make_io(f);
+  io->SetPixelTypeInfo(static_cast<const typename TImage::PixelType*>(nullptr));
+  const auto size = img->GetLargestPossibleRegion().GetSize();
+  std::array<double, 3> spacing, origin;
+  std::array<double, 9> direction;
+  for (int a = 0; a < 3; ++a) {
+    spacing[a] = img->GetSpacing()[a];
+    origin[a] = img->GetOrigin()[a];
+    for (int c = 0; c < 3; ++c) direction[a * 3 + c] = img->GetDirection()(a, c);
+  }
+  write_voxels(*io, f, {size[0], size[1], size[2]}, spacing, origin, direction, img->GetMetaDataDictionary(),
+               img->GetBufferPointer(), path, what);
 }
 
 template <class TImage>
@@ -1144,38 +1195,16 @@ bool is_integer(itk::IOComponentEnum c) {
 void write_label_file(const LabelMap& map, itk::IOComponentEnum type, const std::string& path) {
   const char* what = "a label map";
   const Format f = output_format(path, kVolumeFormats, what);
-  AtomicWrite aw(path);
-  const Grid& g = map.grid;
-  const int dims[3] = {g.dims.x, g.dims.y, g.dims.z};
   itk::ImageIOBase::Pointer io = make_io(f);
-  io->SetNumberOfDimensions(3);
-  itk::ImageIORegion region(3);
-  for (unsigned a = 0; a < 3; ++a) {
-    io->SetDimensions(a, dims[a]);
-    io->SetSpacing(a, g.spacing[a]);
-    io->SetOrigin(a, g.origin[a]);
-    io->SetDirection(a, std::vector<double>{g.direction[a], g.direction[3 + a], g.direction[6 + a]});  // column a
-    region.SetIndex(a, 0);
-    region.SetSize(a, dims[a]);
-  }
   io->SetPixelType(itk::IOPixelEnum::SCALAR);
   io->SetComponentType(type);
   io->SetNumberOfComponents(1);
   if (io->GetComponentSize() != static_cast<std::size_t>(map.bytes))
     throw Error(path + ": label map: " + std::to_string(map.bytes) + " bytes per voxel, but " + map.component_type +
                 " has " + std::to_string(io->GetComponentSize()));
-  io->SetUseCompression(compressed(f));
-  io->SetFileName(aw.temp_path());
-  io->SetIORegion(region);
-  try {
-    io->Write(map.data.data());
-  } catch (const itk::ExceptionObject& e) {
-    throw Error(path + ": cannot write " + what + ": " + one_line(e));
-  }
-  aw.sync();
-  verify_written(map.data.data(), {std::size_t(dims[0]), std::size_t(dims[1]), std::size_t(dims[2])}, 1,
-                 io->GetComponentSize(), aw.temp_path(), f, path, what);
-  aw.commit();
+  const Grid& g = map.grid;
+  write_voxels(*io, f, {std::size_t(g.dims.x), std::size_t(g.dims.y), std::size_t(g.dims.z)}, g.spacing, g.origin,
+               g.direction, itk::MetaDataDictionary(), map.data.data(), path, what);
 }
 }  // namespace
 
