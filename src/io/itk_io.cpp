@@ -22,7 +22,6 @@
 #include <itkGDCMImageIO.h>
 #include <itkImage.h>
 #include <itkImageFileReader.h>
-#include <itkImageFileWriter.h>
 #include <itkMetaDataObject.h>
 #include <itkMetaImageIO.h>
 #include <itkNiftiImageIO.h>
@@ -809,52 +808,145 @@ class AtomicWrite {
   fs::path tmpdir_;
 };
 
+// The voxels of the first 3-D volume of a file whose information `io` has read, as the file
+// stores them (native byte order, components interleaved): what ImageFileReader reads for an
+// image of the file's own pixel type. The whole file is read (non-streaming IOs read all of
+// it), then cut to its first volume.
+std::vector<unsigned char> read_first_volume(itk::ImageIOBase& io) {
+  const unsigned nd = io.GetNumberOfDimensions();
+  itk::ImageIORegion region(nd);
+  std::size_t voxels = 1, volume = 1;
+  for (unsigned a = 0; a < nd; ++a) {
+    region.SetIndex(a, 0);
+    region.SetSize(a, io.GetDimensions(a));
+    voxels *= io.GetDimensions(a);
+    if (a < 3) volume *= io.GetDimensions(a);
+  }
+  io.SetIORegion(region);
+  const std::size_t pixel_bytes = io.GetComponentSize() * io.GetNumberOfComponents();
+  std::vector<unsigned char> bytes(voxels * pixel_bytes);
+  io.Read(bytes.data());
+  bytes.resize(volume * pixel_bytes);
+  return bytes;
+}
+
 // Reads a just-written file back and compares it with what was meant to be written, bit for
 // bit: a file cut short (disk full, a file size limit) whose writer still reported success is
-// an error, never a result.
-template <class TImage>
-void verify_written(TImage* img, const std::string& written, Format f, const std::string& path, const char* what) {
+// an error, never a result. Through the ImageIO alone: an ITK reader per written pixel type
+// cost more compile time than the rest of this check.
+void verify_written(const void* data, const std::array<std::size_t, 3>& dims, unsigned components,
+                    std::size_t component_bytes, const std::string& written, Format f, const std::string& path,
+                    const char* what) {
   const std::string failed = path + ": write failed (disk full?): read back, the written file ";
-  auto reader = itk::ImageFileReader<TImage>::New();
-  reader->SetImageIO(make_io(f));
-  reader->SetFileName(written);
+  itk::ImageIOBase::Pointer back = make_io(f);
+  std::vector<unsigned char> bytes;
   try {
-    reader->Update();
+    back->SetFileName(written);
+    back->ReadImageInformation();
+    bool same_size = back->GetNumberOfDimensions() >= 3 && back->GetNumberOfComponents() == components &&
+                     back->GetComponentSize() == component_bytes;
+    for (unsigned a = 0; same_size && a < 3; ++a) same_size = back->GetDimensions(a) == dims[a];
+    if (!same_size) throw Error(failed + "has another size than " + std::string(what));
+    bytes = read_first_volume(*back);
   } catch (const itk::ExceptionObject& e) {
     throw Error(failed + "is unreadable: " + one_line(e));
   }
-  TImage* back = reader->GetOutput();
-  if (back->GetBufferedRegion().GetSize() != img->GetBufferedRegion().GetSize() ||
-      back->GetNumberOfComponentsPerPixel() != img->GetNumberOfComponentsPerPixel())
-    throw Error(failed + "has another size than " + std::string(what));
-  const std::size_t bytes = img->GetPixelContainer()->Size() * sizeof(*img->GetBufferPointer());
-  if (std::memcmp(back->GetBufferPointer(), img->GetBufferPointer(), bytes) != 0)
+  if (bytes.size() != dims[0] * dims[1] * dims[2] * components * component_bytes ||
+      std::memcmp(bytes.data(), data, bytes.size()) != 0)
     throw Error(failed + "differs from " + std::string(what) + " it was meant to hold");
 }
 
-template <class TImage>
-void write_image(TImage* img, const std::string& path, const std::vector<Format>& allowed, const char* what) {
+// The format of `path`, one of `allowed` for writing `what`.
+Format output_format(const std::string& path, const std::vector<Format>& allowed, const char* what) {
   const Format f = detail::format_of(path);
   if (std::find(allowed.begin(), allowed.end(), f) == allowed.end()) {
     std::string list;
     for (Format a : allowed) list += (list.empty() ? "" : ", ") + detail::extension_of(a);
     throw Error(path + ": unsupported extension for " + what + " (supported: " + list + ")");
   }
+  return f;
+}
+
+// Single-file formats are compressed; detached ones (.nhdr, .mhd) keep raw data.
+bool compressed(Format f) { return f == Format::NiftiGz || f == Format::Nrrd || f == Format::Mha; }
+
+// The origin and direction as ImageFileWriter writes them from an itk::Image given these, so that
+// the files stay byte for byte what they were (signs of zero included): the image keeps its
+// initial identity entry (and its origin 0) where the value equals it, and the writer's origin is
+// the physical point of index 0, origin + (direction * diag(spacing)) * 0, summed as ITK does.
+struct WrittenGeometry {
+  std::array<double, 3> origin;
+  std::array<double, 9> direction;  ///< row-major
+};
+WrittenGeometry as_itk_writes(const std::array<double, 3>& spacing, const std::array<double, 3>& origin,
+                              const std::array<double, 9>& direction) {
+  WrittenGeometry w;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) {
+      const double initial = r == c ? 1.0 : 0.0;
+      w.direction[r * 3 + c] = direction[r * 3 + c] == initial ? initial : direction[r * 3 + c];
+    }
+  const bool zero_origin = origin[0] == 0.0 && origin[1] == 0.0 && origin[2] == 0.0;
+  for (int r = 0; r < 3; ++r) {
+    w.origin[r] = zero_origin ? 0.0 : origin[r];
+    for (int c = 0; c < 3; ++c) {
+      double m = w.direction[r * 3] * (c == 0 ? spacing[0] : 0.0);
+      for (int k = 1; k < 3; ++k) m += w.direction[r * 3 + k] * (k == c ? spacing[c] : 0.0);
+      w.origin[r] += m * 0.0;
+    }
+  }
+  return w;
+}
+
+// Writes voxels whose pixel type `io` has been given, as ImageFileWriter writes an itk::Image in
+// one piece, through the format's ImageIO alone (a writer per pixel type cost more compile
+// time than the rest of this file's writing), then reads the file back and compares it.
+// `direction` is row-major (row a, column c: direction[a * 3 + c]).
+void write_voxels(itk::ImageIOBase& io, Format f, const std::array<std::size_t, 3>& dims,
+                  const std::array<double, 3>& spacing, const std::array<double, 3>& origin,
+                  const std::array<double, 9>& direction, const itk::MetaDataDictionary& dictionary,
+                  const void* data, const std::string& path, const char* what) {
   AtomicWrite aw(path);
-  auto writer = itk::ImageFileWriter<TImage>::New();
-  writer->SetImageIO(make_io(f));
-  writer->SetFileName(aw.temp_path());
-  writer->SetInput(img);
-  // Single-file formats are compressed; detached ones (.nhdr, .mhd) keep raw data.
-  writer->SetUseCompression(f == Format::NiftiGz || f == Format::Nrrd || f == Format::Mha);
+  const WrittenGeometry w = as_itk_writes(spacing, origin, direction);
+  io.SetNumberOfDimensions(3);
+  itk::ImageIORegion region(3);
+  for (unsigned a = 0; a < 3; ++a) {
+    io.SetDimensions(a, dims[a]);
+    io.SetSpacing(a, spacing[a]);
+    io.SetOrigin(a, w.origin[a]);
+    io.SetDirection(a, std::vector<double>{w.direction[a], w.direction[3 + a], w.direction[6 + a]});  // column a
+    region.SetIndex(a, 0);
+    region.SetSize(a, dims[a]);
+  }
+  io.SetUseCompression(compressed(f));
+  io.SetMetaDataDictionary(dictionary);
+  io.SetFileName(aw.temp_path());
+  io.SetIORegion(region);
   try {
-    writer->Update();
+    io.Write(data);
   } catch (const itk::ExceptionObject& e) {
     throw Error(path + ": cannot write " + what + ": " + one_line(e));
   }
   aw.sync();
-  verify_written(img, aw.temp_path(), f, path, what);
+  verify_written(data, dims, io.GetNumberOfComponents(), io.GetComponentSize(), aw.temp_path(), f, path, what);
   aw.commit();
+}
+
+template <class TImage>
+void write_image(TImage* img, const std::string& path, const std::vector<Format>& allowed, const char* what) {
+  const Format f = output_format(path, allowed, what);
+  itk::ImageIOBase::Pointer io = make_io(f);
+  io->SetPixelTypeInfo(static_cast<const typename TImage::PixelType*>(nullptr));
+  const auto size = img->GetLargestPossibleRegion().GetSize();
+  std::array<double, 3> spacing, origin;
+  std::array<double, 9> direction;
+  for (int a = 0; a < 3; ++a) {
+    spacing[a] = img->GetSpacing()[a];
+    origin[a] = img->GetOrigin()[a];
+    for (int c = 0; c < 3; ++c) direction[a * 3 + c] = img->GetDirection()(a, c);
+  }
+  write_voxels(*io, f, {size[0], size[1], size[2]}, spacing, origin, direction, img->GetMetaDataDictionary(),
+               img->GetBufferPointer(), path, what);
 }
 
 template <class TImage>
@@ -1086,23 +1178,33 @@ void write_pullback_field(const Grid& g, const std::vector<float>& pullback_mm, 
               "a pull-back displacement field");
 }
 
+// Label maps are read and written as the file stores them, byte for byte, through the ImageIO
+// alone: an ITK reader and writer per integer type (ten of each) doubled this file's compile time.
 namespace {
-// Calls f(T{}) with the integer type of an ITK component type; false for any other type.
-template <class F>
-bool with_integer_type(itk::IOComponentEnum c, F&& f) {
+bool is_integer(itk::IOComponentEnum c) {
+  using C = itk::IOComponentEnum;
   switch (c) {
-    case itk::IOComponentEnum::UCHAR: f((unsigned char){}); return true;
-    case itk::IOComponentEnum::CHAR: f((signed char){}); return true;
-    case itk::IOComponentEnum::USHORT: f((unsigned short){}); return true;
-    case itk::IOComponentEnum::SHORT: f(short{}); return true;
-    case itk::IOComponentEnum::UINT: f((unsigned int){}); return true;
-    case itk::IOComponentEnum::INT: f(int{}); return true;
-    case itk::IOComponentEnum::ULONG: f((unsigned long){}); return true;
-    case itk::IOComponentEnum::LONG: f(long{}); return true;
-    case itk::IOComponentEnum::ULONGLONG: f((unsigned long long){}); return true;
-    case itk::IOComponentEnum::LONGLONG: f((long long){}); return true;
+    case C::UCHAR: case C::CHAR: case C::USHORT: case C::SHORT: case C::UINT:
+    case C::INT: case C::ULONG: case C::LONG: case C::ULONGLONG: case C::LONGLONG: return true;
     default: return false;
   }
+}
+
+// Writes a label map's voxels in its own integer type, as ImageFileWriter writes an itk::Image
+// of that type (one piece), then reads the file back and compares it bit for bit.
+void write_label_file(const LabelMap& map, itk::IOComponentEnum type, const std::string& path) {
+  const char* what = "a label map";
+  const Format f = output_format(path, kVolumeFormats, what);
+  itk::ImageIOBase::Pointer io = make_io(f);
+  io->SetPixelType(itk::IOPixelEnum::SCALAR);
+  io->SetComponentType(type);
+  io->SetNumberOfComponents(1);
+  if (io->GetComponentSize() != static_cast<std::size_t>(map.bytes))
+    throw Error(path + ": label map: " + std::to_string(map.bytes) + " bytes per voxel, but " + map.component_type +
+                " has " + std::to_string(io->GetComponentSize()));
+  const Grid& g = map.grid;
+  write_voxels(*io, f, {std::size_t(g.dims.x), std::size_t(g.dims.y), std::size_t(g.dims.z)}, g.spacing, g.origin,
+               g.direction, itk::MetaDataDictionary(), map.data.data(), path, what);
 }
 }  // namespace
 
@@ -1140,28 +1242,24 @@ LabelMap read_label_map(const std::string& path) {
     LabelMap map;
     map.source = path;
     map.component_type = itk::ImageIOBase::GetComponentTypeAsString(io->GetComponentType());
-    const bool integer = with_integer_type(io->GetComponentType(), [&](auto zero) {
-      using T = decltype(zero);
-      using Img = itk::Image<T, 3>;
-      auto reader = itk::ImageFileReader<Img>::New();
-      reader->SetImageIO(io);
-      reader->SetFileName(path);
-      reader->Update();
-      Img* img = reader->GetOutput();
-      const auto size = img->GetLargestPossibleRegion().GetSize();
-      map.grid.dims = {int(size[0]), int(size[1]), int(size[2])};
-      for (int a = 0; a < 3; ++a) {
-        map.grid.spacing[a] = img->GetSpacing()[a];
-        map.grid.origin[a] = img->GetOrigin()[a];
-        for (int c = 0; c < 3; ++c) map.grid.direction[a * 3 + c] = img->GetDirection()(a, c);
-      }
-      map.bytes = sizeof(T);
-      const auto* p = reinterpret_cast<const unsigned char*>(img->GetBufferPointer());
-      map.data.assign(p, p + map.grid.size() * sizeof(T));
-    });
-    if (!integer)
+    if (!is_integer(io->GetComponentType()))
       throw Error(path + ": label map: voxels are " + map.component_type +
                   "; a label map needs an integer type (uint8/int8 .. uint64/int64): labels are never interpolated");
+    // The grid as ITK's reader gives it to an image (negative spacing flips the axis, ...).
+    auto reader = itk::ImageFileReader<FloatImage>::New();
+    reader->SetImageIO(io);
+    reader->SetFileName(path);
+    reader->UpdateOutputInformation();
+    const FloatImage* img = reader->GetOutput();
+    const auto size = img->GetLargestPossibleRegion().GetSize();
+    map.grid.dims = {int(size[0]), int(size[1]), int(size[2])};
+    for (int a = 0; a < 3; ++a) {
+      map.grid.spacing[a] = img->GetSpacing()[a];
+      map.grid.origin[a] = img->GetOrigin()[a];
+      for (int c = 0; c < 3; ++c) map.grid.direction[a * 3 + c] = img->GetDirection()(a, c);
+    }
+    map.bytes = static_cast<int>(io->GetComponentSize());
+    map.data = read_first_volume(*io);
     if (nifti_grid) {
       map.grid.spacing = nifti_grid->spacing;
       map.grid.origin = nifti_grid->origin;
@@ -1180,16 +1278,8 @@ void write_label_values(const LabelMap& map, const std::string& path) {
     throw Error(path + ": label map: " + std::to_string(map.data.size()) + " bytes for a grid of " +
                 std::to_string(map.grid.size()) + " voxels");
   const auto type = itk::ImageIOBase::GetComponentTypeFromString(map.component_type);
-  const bool integer = with_integer_type(type, [&](auto zero) {
-    using T = decltype(zero);
-    using Img = itk::Image<T, 3>;
-    const Grid& g = map.grid;
-    auto img = make_image<Img>(g.dims, g.spacing, g.origin, g.direction);
-    img->Allocate();
-    std::memcpy(static_cast<void*>(img->GetBufferPointer()), map.data.data(), map.data.size());
-    write_image(img.GetPointer(), path, kVolumeFormats, "a label map");
-  });
-  if (!integer) throw Error(path + ": label map: " + map.component_type + " is not an integer type");
+  if (!is_integer(type)) throw Error(path + ": label map: " + map.component_type + " is not an integer type");
+  write_label_file(map, type, path);
 }
 
 namespace detail {

@@ -253,6 +253,10 @@ def main():
              "python_path": os.path.abspath(a.python_path) if a.python_path else "", "xvfb-run": shutil.which("xvfb-run")}
     have_data = prepare(scratch, a.data, tools["hpcm"])
     failures, ran, not_run = [], 0, 0
+    # A command that another document shows word for word (the README repeats docs/cli.md's) is
+    # run once: the same argument vector, environment and redirection check the same thing.
+    # Within one document a repeated command runs again (it may show a resumed run).
+    first_run = {}  # (argv, env, redirection) -> (document, where, status)
     for doc in [d for d in markdown_files(a.docs) if os.path.basename(d) not in a.skip]:
         for n, cmd in commands(doc):
             where = f"{os.path.basename(doc)}:{n}"
@@ -280,6 +284,13 @@ def main():
             if reads_input and not have_data:
                 print(f"SKIP {where}: {cmd} (no shared data in {a.data})")
                 continue
+            key = (tuple(argv), tuple(sorted(env.items())), stdout_file)
+            if key in first_run and first_run[key][0] != doc:
+                _, first, first_status = first_run[key]
+                print(f"{first_status} {where}: the same command as {first} (run once)")
+                if first_status == "FAIL":
+                    failures.append(where)
+                continue
             out = open(os.path.join(scratch, stdout_file), "w") if stdout_file else subprocess.PIPE
             full_env = dict(os.environ, HPCM_EXE=tools["hpcm"], HPCM_NO_PROGRESS="1", MPLBACKEND="Agg", **env)
             t0 = time.monotonic()
@@ -298,6 +309,7 @@ def main():
                 problems.append(f"exit {p.returncode}: {p.stderr.strip()[-600:]}")
             problems += check_outputs(argv, scratch, stdout_file)
             status = "FAIL" if problems else "ok"
+            first_run.setdefault(key, (doc, where, status))
             print(f"{status} {where} ({time.monotonic() - t0:.1f} s): {' '.join(shlex.quote(x) for x in argv)}" + "".join("\n    " + x for x in problems),
                   flush=True)
             if problems:

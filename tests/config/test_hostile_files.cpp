@@ -17,7 +17,7 @@ namespace fs = std::filesystem;
 namespace cfg = hpcm::config;
 
 namespace {
-std::string error_of(const std::function<void()>& f) {
+std::string hostile_error_of(const std::function<void()>& f) {
   try {
     f();
   } catch (const hpcm::Error& e) {
@@ -35,14 +35,14 @@ fs::path scratch(const std::string& name) {
 
 TEST(HostileConfigFiles, DirectoryIsNotAParameterFile) {
   const fs::path d = scratch("dir");
-  EXPECT_NE(error_of([&] { cfg::load_params(d.string()); }).find("is a directory, not a parameter file"), std::string::npos);
-  EXPECT_NE(error_of([&] { cfg::load_scenario(d.string()); }).find("is a directory, not a scenario file"), std::string::npos);
+  EXPECT_NE(hostile_error_of([&] { cfg::load_params(d.string()); }).find("is a directory, not a parameter file"), std::string::npos);
+  EXPECT_NE(hostile_error_of([&] { cfg::load_scenario(d.string()); }).find("is a directory, not a scenario file"), std::string::npos);
   fs::remove_all(d);
 }
 
 TEST(HostileConfigFiles, DevZeroIsRefusedAsNotARegularFile) {
   if (!fs::exists("/dev/zero")) GTEST_SKIP() << "no /dev/zero";
-  const std::string msg = error_of([] { cfg::load_params("/dev/zero"); });
+  const std::string msg = hostile_error_of([] { cfg::load_params("/dev/zero"); });
   EXPECT_NE(msg.find("/dev/zero: is not a regular file"), std::string::npos) << msg;
 }
 
@@ -53,7 +53,7 @@ TEST(HostileConfigFiles, FifoIsRefusedWithoutBlocking) {
   ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
   // Without the check the read blocks: after 5 s a writer opens and closes the FIFO to free it.
   const auto error_within_5s = [&](const std::function<void()>& load) {
-    auto reading = std::async(std::launch::async, [&] { return error_of(load); });
+    auto reading = std::async(std::launch::async, [&] { return hostile_error_of(load); });
     if (reading.wait_for(std::chrono::seconds(5)) == std::future_status::timeout) {
       ADD_FAILURE() << "blocked on a FIFO";
       ::close(::open(fifo.c_str(), O_WRONLY));
@@ -73,21 +73,21 @@ TEST(HostileConfigFiles, BinaryAndOversizedFilesAreRefused) {
     std::ofstream f(d / "nul.toml", std::ios::binary);
     f << "[dynamics]\nalpha = 0.5\n" << '\0' << "beta = 1.0\n";
   }
-  EXPECT_NE(error_of([&] { cfg::load_params((d / "nul.toml").string()); }).find("NUL bytes"), std::string::npos);
+  EXPECT_NE(hostile_error_of([&] { cfg::load_params((d / "nul.toml").string()); }).find("NUL bytes"), std::string::npos);
   {
     std::ofstream f(d / "big.toml", std::ios::binary);
     const std::string comment = "# " + std::string(1000, 'x') + "\n";
     for (int i = 0; i < 5000; ++i) f << comment;  // 5 MB of comments
   }
-  EXPECT_NE(error_of([&] { cfg::load_params((d / "big.toml").string()); }).find("larger than 4 MiB"), std::string::npos);
-  EXPECT_NE(error_of([&] { cfg::load_params((d / "missing.toml").string()); }).find("missing.toml: cannot open"),
+  EXPECT_NE(hostile_error_of([&] { cfg::load_params((d / "big.toml").string()); }).find("larger than 4 MiB"), std::string::npos);
+  EXPECT_NE(hostile_error_of([&] { cfg::load_params((d / "missing.toml").string()); }).find("missing.toml: cannot open"),
             std::string::npos);
   fs::remove_all(d);
 }
 
 TEST(HostileConfigFiles, KeyframeOffsetsAreBoundedSoTheyStayFinite) {
   // Two finite offsets near FLT_MAX would make the interpolated tool offset infinite.
-  const std::string msg = error_of([] {
+  const std::string msg = hostile_error_of([] {
     cfg::parse_scenario("[scenario]\nframes = 30\n[[grab]]\ncentre = [4, 4, 4]\nrelease = 20\n"
                         "keyframes = [[5, 3e38, 0, 0], [10, -3e38, 0, 0]]\n",
                         "huge.toml");

@@ -32,7 +32,7 @@ void expect_scenario_eq(const Scenario& a, const Scenario& b) {
   }
 }
 
-std::string error_of(const std::string& text) {
+std::string scenario_error_of(const std::string& text) {
   try {
     cfg::parse_scenario(text, "scn.toml");
   } catch (const hpcm::Error& e) {
@@ -179,7 +179,7 @@ TEST(ScenarioFile, Errors) {
        "grab[0].keyframes[0] frame = -1 is out of range [0, "},
   };
   for (const auto& c : cases) {
-    const std::string msg = error_of(c.text);
+    const std::string msg = scenario_error_of(c.text);
     ASSERT_FALSE(msg.empty()) << "accepted:\n" << c.text;
     EXPECT_EQ(msg.rfind("scn.toml: ", 0), 0u) << msg;
     EXPECT_CONTAINS(msg, c.want);

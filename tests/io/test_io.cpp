@@ -864,6 +864,50 @@ TEST(DeformedLabels, LabelMapsKeepTypeAndGridThroughEveryFormat) {
   expect_error([&] { io::read_label_map(floats); }, floats, "integer type");
 }
 
+// Every integer type ITK names, through every format a label map is written in: the voxels come
+// back bit for bit (all bytes of each voxel differ), with the type's size and signedness and the
+// grid; a byte count that does not match the type is refused before anything is written.
+TEST(DeformedLabels, EveryIntegerTypeRoundTripsBitForBitThroughEveryFormat) {
+  Scratch s;
+  const Volume v = make_volume({6, 5, 3}, true);
+  const std::pair<const char*, int> types[] = {{"unsigned_char", 1}, {"char", 1}, {"unsigned_short", 2},
+                                               {"short", 2}, {"unsigned_int", 4}, {"int", 4},
+                                               {"unsigned_long", 8}, {"long", 8}, {"unsigned_long_long", 8},
+                                               {"long_long", 8}};
+  for (const auto& [type, bytes] : types) {
+    io::LabelMap map;
+    map.grid = io::grid_of(v);
+    map.component_type = type;
+    map.bytes = bytes;
+    map.data.resize(v.size() * bytes);
+    for (std::size_t i = 0; i < map.data.size(); ++i) map.data[i] = static_cast<unsigned char>(i * 37 + i / 7 + 11);
+    for (const char* ext : {".nii", ".nii.gz", ".nrrd", ".nhdr", ".mha", ".mhd"}) {
+      const std::string path = s / (std::string("labels_") + type + "_" + (ext + 1) + ext);  // .nhdr and .mhd: own .raw
+      io::write_label_values(map, path);
+      const io::LabelMap back = io::read_label_map(path);
+      const std::string name = std::string(type) + " " + ext;
+      EXPECT_EQ(back.bytes, bytes) << name;
+      EXPECT_EQ(back.component_type.rfind("unsigned", 0) == 0, std::string(type).rfind("unsigned", 0) == 0)
+          << name << " came back as " << back.component_type;
+      EXPECT_EQ(back.data, map.data) << name;
+      EXPECT_EQ(back.grid.dims, map.grid.dims) << name;
+      for (int a = 0; a < 3; ++a) {
+        EXPECT_NEAR(back.grid.spacing[a], map.grid.spacing[a], 1e-6) << name;
+        EXPECT_NEAR(back.grid.origin[a], map.grid.origin[a], 1e-4) << name;
+      }
+      for (int k = 0; k < 9; ++k) EXPECT_NEAR(back.grid.direction[k], map.grid.direction[k], 1e-6) << name;
+    }
+  }
+  io::LabelMap wrong;
+  wrong.grid = io::grid_of(v);
+  wrong.component_type = "short";
+  wrong.bytes = 4;
+  wrong.data.resize(v.size() * 4);
+  const std::string path = s / "wrong_bytes.nrrd";
+  expect_error([&] { io::write_label_values(wrong, path); }, path, "4 bytes per voxel, but short has 2");
+  EXPECT_FALSE(std::filesystem::exists(path));
+}
+
 // SPEC §3: the body on the lattice with ITK's filters. A box of tissue with an air-filled
 // cavity lies on a table slab, joined to it by a one-element bridge; noisy air around them.
 TEST(Body, FindsTheBodyCutsThinContactsAndFillsHoles) {
