@@ -446,10 +446,10 @@ void SimRunner::publish(bool stepped) {
   // Positions change only in a frame (and on reset or new data): tool moves, parameters and
   // run/pause publish the same buffer again instead of downloading 12 bytes per element.
   if (stepped || positions_dirty_ || !last_disp_) {
-    auto buf = acquire_buffer();
-    sim_->backend().download_displacements(*buf);
+    PooledBuffer& buf = acquire_buffer();
+    sim_->backend().download_displacements_since(*buf.data, buf.since);
     last_prev_ = stepped ? last_disp_ : last_prev_;
-    last_disp_ = std::move(buf);
+    last_disp_ = buf.data;
     ++positions_id_;
     positions_dirty_ = false;
   }
@@ -481,13 +481,13 @@ void SimRunner::publish(bool stepped) {
   if (wake) wake();
 }
 
-std::shared_ptr<std::vector<Vec3>> SimRunner::acquire_buffer() {
+SimRunner::PooledBuffer& SimRunner::acquire_buffer() {
   for (auto& b : pool_)
-    if (b.use_count() == 1) {  // nobody else holds it: the display let it go
+    if (b.data.use_count() == 1) {  // nobody else holds it: the display let it go
       std::atomic_thread_fence(std::memory_order_acquire);
       return b;
     }
-  pool_.push_back(std::make_shared<std::vector<Vec3>>());
+  pool_.push_back({std::make_shared<std::vector<Vec3>>(), 0});
   return pool_.back();
 }
 

@@ -178,7 +178,13 @@ class SimRunner {
   void track_tool();
   void announce_limited_pull();
   Index reference_centre() const;
-  std::shared_ptr<std::vector<Vec3>> acquire_buffer();
+  /// A positions buffer and the stamp of its content (Backend::download_displacements_since):
+  /// a buffer taken again is brought up to date from the bricks written since.
+  struct PooledBuffer {
+    std::shared_ptr<std::vector<Vec3>> data;
+    std::uint64_t since = 0;
+  };
+  PooledBuffer& acquire_buffer();
   void notice(Notice::Kind k, std::string text);
 
   // Owned by the simulation thread once started.
@@ -189,7 +195,7 @@ class SimRunner {
   std::string source_;
   std::shared_ptr<const Model> model_copy_;
   std::uint64_t model_id_ = 0;
-  std::vector<std::shared_ptr<std::vector<Vec3>>> pool_;
+  std::vector<PooledBuffer> pool_;
   std::shared_ptr<const std::vector<Vec3>> last_disp_, last_prev_;
   bool positions_dirty_ = true;  // positions may differ from last_pos_ (a step, reset, new data)
   std::uint64_t positions_id_ = 0;

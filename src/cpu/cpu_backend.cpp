@@ -1,6 +1,7 @@
 #include "cpu/cpu_backend.hpp"
 
 #include <algorithm>
+#include <atomic>
 
 namespace hpcm::cpu {
 
@@ -48,7 +49,8 @@ void CpuBackend::upload(const Model& m, const Params& p, const State& s) {
       touched_[static_cast<std::size_t>(grid_.brick_of_index(i))] = 1;
   hot_ = touched_;
   worked_.assign(nb, 0);
-  written_.assign(nb, ++stamp_);  // every brick is new to every host copy
+  stamp_ = next_stamp();
+  written_.assign(nb, stamp_);  // every brick is new to every host copy
   fixed_ = {};
   still_flags_.assign(static_cast<std::size_t>(m.size()), 0);
   still_targets_pending_ = false;
@@ -205,8 +207,15 @@ void CpuBackend::velocity_layer(SpeedStats* speeds) {
                worked_, speeds, *pool_);
 }
 
+std::uint64_t CpuBackend::next_stamp() {
+  // One sequence for every backend of the process: a host copy kept with another backend
+  // (or before a reload) holds a smaller stamp than anything this one writes from now on.
+  static std::atomic<std::uint64_t> counter{1};
+  return ++counter;
+}
+
 void CpuBackend::stamp_written() {
-  ++stamp_;
+  stamp_ = next_stamp();
   for (std::size_t b = 0; b < written_.size(); ++b)
     if (worked_[b] || touched_[b]) written_[b] = stamp_;
 }

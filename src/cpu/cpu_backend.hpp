@@ -75,9 +75,11 @@ class CpuBackend final : public Backend {
   void mark_all(std::vector<std::uint8_t>& flags) { std::fill(flags.begin(), flags.end(), 1); }
   /// Every stage writes only bricks it marks worked or touched: those get a new stamp.
   void stamp_written();
+  static std::uint64_t next_stamp();
   /// The bricks written since `since` (stamp_written() first), into since_list_.
   const std::vector<Index>& written_since(std::uint64_t since);
-  /// A write outside the stages (flags of a new FIXED set): element i's brick gets the next stamp.
+  /// A write outside the stages (flags of a new FIXED set): element i's brick gets a stamp above
+  /// every one handed out so far (the next stamp_written() takes one at least as large).
   void mark_written(Index i) { written_[static_cast<std::size_t>(grid_.brick_of_index(i))] = stamp_ + 1; }
   /// restore_links(); with `frame_end`, X- follows every element it moves.
   RestoreStats restore(bool frame_end);
@@ -95,7 +97,7 @@ class CpuBackend final : public Backend {
   std::vector<std::uint8_t> touched_, hot_, unchecked_;
   std::vector<std::uint8_t> worked_;  ///< bricks any stage processed this frame
   std::vector<std::uint64_t> written_;  ///< per brick: stamp of its last write (download_since)
-  std::uint64_t stamp_ = 1;             ///< grows with every stamp_written(), never reset (not by a load either)
+  std::uint64_t stamp_ = 0;             ///< the latest of next_stamp() this backend took
   std::vector<Index> since_list_;
   std::unique_ptr<WorkerPool> pool_;
   Propagation propagation_;

@@ -97,6 +97,40 @@ TEST(ViewerSimRunner, CommandsGiveTheSameFramesAsTheSimulationItself) {
   EXPECT_EQ(samples.back().frame, 8);
 }
 
+// The display's buffers are taken again and brought up to date from the bricks written since
+// (Backend::download_displacements_since). New data start a new backend: its stamps continue
+// the process-wide sequence, so every buffer is filled anew (fails when a reused buffer keeps
+// the old lattice's positions, as it did with stamps counted per backend).
+TEST(ViewerSimRunner, NewDataFillTheReusedBuffersAnew) {
+  const Params p;
+  const Int3 dims{24, 24, 16};
+  const Model first = phantom_model(dims, p);
+  const Index centre = paper_grab_centre(first);
+  SimRunner runner(std::make_unique<Simulation>(first, p), std::nullopt, "phantom");
+  runner.start(false);
+  runner.grab(centre, 0);
+  runner.move_tool({0, -2.0f, 0});
+  runner.step_frames(12);  // frames with many moved bricks, several buffers in turn
+  wait_frame(runner, 12);
+  PhantomOptions po;
+  po.dims = dims;
+  po.seed = 2;  // another noise: other tissue, other motion
+  const Model second = build_model(make_phantom(po), p);
+  runner.replace(std::make_shared<Model>(second), p, BackendKind::Cpu, "phantom, seed 2", "");
+  wait_until(runner, [](const PublishedFrame& f) { return f.source == "phantom, seed 2"; });
+  runner.grab(centre, 0);
+  runner.move_tool({0, -1.0f, 0});
+  runner.step_frames(3);
+  const auto f = wait_until(runner, [](const PublishedFrame& g) { return g.source == "phantom, seed 2" && g.frame >= 3; });
+  Simulation direct(second, p);
+  direct.grab(centre, 0);
+  direct.move_tool({0, -1.0f, 0});
+  for (int k = 0; k < 3; ++k) direct.step();
+  ASSERT_TRUE(f && f->disp);
+  EXPECT_EQ(f->frame, 3);
+  EXPECT_EQ(*f->disp, direct.state().disp);
+}
+
 TEST(ViewerSimRunner, TheDisplayGoesOnWhileASimulationFrameIsHeld) {
   const Params p;
   SimRunner runner(std::make_unique<Simulation>(phantom_model({24, 24, 16}, p), p), Scenario::paper_protocol(), "phantom");
