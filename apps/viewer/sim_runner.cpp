@@ -8,16 +8,6 @@ namespace hpcm::viewer {
 
 using Clock = std::chrono::steady_clock;
 
-bool materials_differ(const Params& a, const Params& b) {
-  if (a.tissue.t1 != b.tissue.t1 || a.tissue.t2 != b.tissue.t2 || a.tissue.t3 != b.tissue.t3) return true;
-  if (a.material.points.size() != b.material.points.size()) return true;
-  for (std::size_t i = 0; i < a.material.points.size(); ++i) {
-    const auto &p = a.material.points[i], &q = b.material.points[i];
-    if (p.hu != q.hu || p.tau != q.tau || p.w != q.w) return true;
-  }
-  return false;
-}
-
 double length_mm(Vec3 offset, const std::array<double, 3>& spacing) {
   double s = 0;
   for (int a = 0; a < 3; ++a) s += double(offset[a]) * spacing[a] * double(offset[a]) * spacing[a];

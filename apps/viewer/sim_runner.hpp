@@ -90,10 +90,6 @@ struct Notice {
   std::string text;
 };
 
-/// True when a and b differ in the tissue thresholds or the material (changing them rebuilds
-/// the materials).
-bool materials_differ(const Params& a, const Params& b);
-
 /// Length in millimetres of an offset in lattice units (per-axis voxel spacing).
 double length_mm(Vec3 offset, const std::array<double, 3>& spacing);
 

@@ -79,4 +79,8 @@ struct Params {
   friend bool operator==(const Params&, const Params&) = default;
 };
 
+/// True when a and b differ in the tissue thresholds or the material table: the model's classes
+/// and links change (Simulation::set_params rebuilds the materials).
+bool materials_differ(const Params& a, const Params& b);
+
 }  // namespace hpcm

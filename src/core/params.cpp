@@ -186,4 +186,8 @@ void Params::validate() const {
   }
 }
 
+bool materials_differ(const Params& a, const Params& b) {
+  return !(a.tissue == b.tissue) || !(a.material == b.material);
+}
+
 }  // namespace hpcm

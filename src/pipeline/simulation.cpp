@@ -18,17 +18,6 @@ namespace hpcm {
 
 namespace {
 std::string fmt_number(double v) { return detail::format_number(v); }
-
-/// The tissue classes or the material table differ: the model's classes and links change.
-bool materials_differ(const Params& a, const Params& b) {
-  if (a.tissue.t1 != b.tissue.t1 || a.tissue.t2 != b.tissue.t2 || a.tissue.t3 != b.tissue.t3) return true;
-  if (a.material.points.size() != b.material.points.size()) return true;
-  for (std::size_t k = 0; k < a.material.points.size(); ++k) {
-    const auto &x = a.material.points[k], &y = b.material.points[k];
-    if (x.hu != y.hu || x.tau != y.tau || x.w != y.w) return true;
-  }
-  return false;
-}
 }  // namespace
 
 void check_grab_radius(float radius, const std::string& what) {
