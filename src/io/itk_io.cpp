@@ -77,6 +77,20 @@ itk::ImageIOBase::Pointer make_io(Format f) {
   }
 }
 
+/// The grid of an ITK image as ITK gives it (file index order, LPS physical space).
+template <class TImage>
+Grid grid_of_image(const TImage* img) {
+  Grid g;
+  const auto size = img->GetLargestPossibleRegion().GetSize();
+  g.dims = {int(size[0]), int(size[1]), int(size[2])};
+  for (int a = 0; a < 3; ++a) {
+    g.spacing[a] = img->GetSpacing()[a];
+    g.origin[a] = img->GetOrigin()[a];
+    for (int c = 0; c < 3; ++c) g.direction[a * 3 + c] = img->GetDirection()(a, c);
+  }
+  return g;
+}
+
 bool looks_like_dicom_file(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
   char buf[132] = {};
@@ -253,15 +267,7 @@ Volume finish(const std::string& path, const float* data, const detail::Geometry
 }
 
 Volume finish(const std::string& path, FloatImage* img, std::vector<std::string>& warnings) {
-  detail::Geometry g;
-  const auto size = img->GetLargestPossibleRegion().GetSize();
-  g.dims = {int(size[0]), int(size[1]), int(size[2])};
-  for (int a = 0; a < 3; ++a) {
-    g.spacing[a] = img->GetSpacing()[a];
-    g.origin[a] = img->GetOrigin()[a];
-    for (int c = 0; c < 3; ++c) g.direction[a * 3 + c] = img->GetDirection()(a, c);
-  }
-  return finish(path, img->GetBufferPointer(), g, warnings);
+  return finish(path, img->GetBufferPointer(), grid_of_image(img), warnings);
 }
 
 // The text header of a MetaImage or NRRD file (at most 1 MiB; binary data may follow).
@@ -938,14 +944,8 @@ void write_image(TImage* img, const std::string& path, const std::vector<Format>
   itk::ImageIOBase::Pointer io = make_io(f);
   io->SetPixelTypeInfo(static_cast<const typename TImage::PixelType*>(nullptr));
   const auto size = img->GetLargestPossibleRegion().GetSize();
-  std::array<double, 3> spacing, origin;
-  std::array<double, 9> direction;
-  for (int a = 0; a < 3; ++a) {
-    spacing[a] = img->GetSpacing()[a];
-    origin[a] = img->GetOrigin()[a];
-    for (int c = 0; c < 3; ++c) direction[a * 3 + c] = img->GetDirection()(a, c);
-  }
-  write_voxels(*io, f, {size[0], size[1], size[2]}, spacing, origin, direction, img->GetMetaDataDictionary(),
+  const Grid g = grid_of_image(img);
+  write_voxels(*io, f, {size[0], size[1], size[2]}, g.spacing, g.origin, g.direction, img->GetMetaDataDictionary(),
                img->GetBufferPointer(), path, what);
 }
 
@@ -1250,14 +1250,7 @@ LabelMap read_label_map(const std::string& path) {
     reader->SetImageIO(io);
     reader->SetFileName(path);
     reader->UpdateOutputInformation();
-    const FloatImage* img = reader->GetOutput();
-    const auto size = img->GetLargestPossibleRegion().GetSize();
-    map.grid.dims = {int(size[0]), int(size[1]), int(size[2])};
-    for (int a = 0; a < 3; ++a) {
-      map.grid.spacing[a] = img->GetSpacing()[a];
-      map.grid.origin[a] = img->GetOrigin()[a];
-      for (int c = 0; c < 3; ++c) map.grid.direction[a * 3 + c] = img->GetDirection()(a, c);
-    }
+    map.grid = grid_of_image(reader->GetOutput());
     map.bytes = static_cast<int>(io->GetComponentSize());
     map.data = read_first_volume(*io);
     if (nifti_grid) {
@@ -1302,12 +1295,7 @@ RawImage read_raw_image(const std::string& path) {
     reader->Update();
     VImage* img = reader->GetOutput();
     const auto size = img->GetLargestPossibleRegion().GetSize();
-    r.geometry.dims = {int(size[0]), int(size[1]), int(size[2])};
-    for (int a = 0; a < 3; ++a) {
-      r.geometry.spacing[a] = img->GetSpacing()[a];
-      r.geometry.origin[a] = img->GetOrigin()[a];
-      for (int c = 0; c < 3; ++c) r.geometry.direction[a * 3 + c] = img->GetDirection()(a, c);
-    }
+    r.geometry = grid_of_image(img);
     const std::size_t n = std::size_t(size[0]) * size[1] * size[2] * img->GetNumberOfComponentsPerPixel();
     r.data.assign(img->GetBufferPointer(), img->GetBufferPointer() + n);
   } catch (const itk::ExceptionObject& e) {

@@ -28,7 +28,7 @@ float bucket_width(const Model& m, const std::vector<std::uint8_t>& still) {
 
 void BucketWidth::reset(const Model& m) {
   still_.clear();
-  mark_.clear();
+  known_ = false;
   width_ = bucket_width(m);
 }
 
@@ -44,12 +44,13 @@ bool BucketWidth::update(const Model& m, const std::vector<Index>& fixed, const 
 }
 
 bool BucketWidth::update(const Model& m, const std::vector<Index>& still) {
-  if (still == still_ && !mark_.empty()) return false;
+  if (known_ && still == still_) return false;
   still_ = still;
-  mark_.assign(static_cast<std::size_t>(m.size()), 0);
-  for (Index e : still_) mark_[static_cast<std::size_t>(e)] = 1;
+  known_ = true;
+  std::vector<std::uint8_t> mark(static_cast<std::size_t>(m.size()), 0);
+  for (Index e : still_) mark[static_cast<std::size_t>(e)] = 1;
   const float before = width_;
-  width_ = bucket_width(m, mark_);
+  width_ = bucket_width(m, mark);
   return width_ != before;
 }
 

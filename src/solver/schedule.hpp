@@ -18,9 +18,10 @@ float bucket_width(const Model& m, const std::vector<std::uint8_t>& still = {});
 /// The bucket width of the current FIXED set, recomputed (O(elements)) only when its entries
 /// that do not start the wave change: the anchors, fixed for a whole run, while the grabbed
 /// elements change every frame of a pull. An element both anchored and grabbed (bone under the
-/// tool) stays still for the width: the wave crosses its links only from time 0. Bone links carry the smallest penalty
-/// (0.02 by default, against 0.16 and more for the soft tissue), so with bone anchored the
-/// buckets are about eight times wider and a wave needs that many fewer bucket passes.
+/// tool) stays still for the width: the wave crosses its links only from time 0. Bone links
+/// carry the smallest penalty (0.02 by default), so with bone anchored the buckets are several
+/// times wider and the paper protocol's waves take four to five times fewer bucket passes
+/// (docs/solver.md, "Bucket width").
 class BucketWidth {
  public:
   /// Every link counts (no FIXED set yet): the model's smallest w.
@@ -34,7 +35,7 @@ class BucketWidth {
 
  private:
   std::vector<Index> still_;  ///< FIXED, not grabbed, in the order given (compared as a whole)
-  std::vector<std::uint8_t> mark_;
+  bool known_ = false;         ///< still_ is the set width_ was computed for
   float width_ = 1.0f;
 };
 
