@@ -35,7 +35,10 @@ if [ "${HPCM_FUZZ:-1}" != 0 ]; then
   stage "fuzz harnesses"
   cmake --preset fuzz
   cmake --build --preset fuzz -j "$JOBS"
-  ctest --preset fuzz -j "$JOBS"
+  # One job per harness: each run is time-boxed (HPCM_FUZZ_SECONDS of wall time), so on two
+  # cores three runs of 30 s together get the core-seconds three runs of 20 s one after the
+  # other got, with no core idle behind the third.
+  ctest --preset fuzz -j 3
 fi
 if [ "${HPCM_SANITIZE:-1}" != 0 ]; then
   stage "ASan + UBSan build and test suite"
