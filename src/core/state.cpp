@@ -59,17 +59,23 @@ CellRange cells_in(const Model& m, const std::vector<Vec3>& disp, Int3 lo, Int3 
     for (int y = lo.y; y < std::min(hi.y, ny - 1); ++y)
       for (int x = lo.x; x < std::min(hi.x, nx - 1); ++x) {
         const Index base = m.index(x, y, z);
+        // The cell's 12 edges, oriented along +x, +y, +z: ex[j][k] joins (0, j, k) to (1, j, k),
+        // ey[i][k] and ez[i][j] likewise. Corner (i, j, k) spans the three edges through it.
+        const Vec3* c0 = &disp[static_cast<std::size_t>(base)];
+        Vec3 ex[2][2], ey[2][2], ez[2][2];
+        for (int b = 0; b < 2; ++b)
+          for (int a = 0; a < 2; ++a) {
+            const Vec3* px = c0 + a * sy + b * sz;
+            ex[a][b] = px[1] - px[0];
+            const Vec3* py = c0 + a + b * sz;
+            ey[a][b] = py[sy] - py[0];
+            const Vec3* pz = c0 + a + b * sy;
+            ez[a][b] = pz[sz] - pz[0];
+          }
         double cell_min = 1e30;
         for (int k = 0; k < 2; ++k)
           for (int j = 0; j < 2; ++j)
-            for (int i = 0; i < 2; ++i) {
-              const Index c = base + i + j * sy + k * sz;
-              // Edges to the corner's neighbours inside the cell, oriented along +x, +y, +z.
-              const Vec3 u = disp[c];
-              const double det = corner_determinant(i ? u - disp[c - 1] : disp[c + 1] - u, j ? u - disp[c - sy] : disp[c + sy] - u,
-                                                    k ? u - disp[c - sz] : disp[c + sz] - u);
-              cell_min = std::min(cell_min, det);
-            }
+            for (int i = 0; i < 2; ++i) cell_min = std::min(cell_min, corner_determinant(ex[j][k], ey[i][k], ez[i][j]));
         r.min_det = std::min(r.min_det, cell_min);
         if (cell_min <= 0.0) ++r.folded;
       }
