@@ -10,11 +10,16 @@
 # run in the Release suite only: they reach no code the unit tests do not, and under the
 # sanitizers they would take most of the CI budget.
 #
-# Sized for a 2-core machine (docs/architecture.md, "The CI run"; CPU seconds per stage there):
+# Sized for a 2-core machine (docs/architecture.md, "The CI run": stage times and why no check
+# is lost):
 # - The ASan preset neither builds nor registers the `heavy` and `e2e` test executables
 #   (HPCM_SKIP_TEST_LABELS; its test preset excludes the `e2e` script tests too), so it
-#   compiles only what its own run executes. Its test preset also leaves to the Release stage
-#   report_script (Python only) and the stability rule's measured settling runs.
+#   compiles only what its own run executes. Its test preset also leaves to the Release stage,
+#   by name, report_script (Python only), the stability rule's measured settling runs, three
+#   NoFold simulations and the command-line runs on valid input, whose code the unit tests
+#   run under ASan; the hostile-input tests stay.
+# - Test sources compile at -O1 (Release) / -O0 (ASan) unless marked OPTIMIZED; the library
+#   keeps its flags (HPCM_TEST_OPTIMIZATION, tests/CMakeLists.txt).
 # - hpcm_cli, hpcm_test_core and the Python module are unity builds (every translation unit
 #   compiled CLI11 / GoogleTest / pybind11 anew); the solver and backend libraries are not,
 #   and keep their flags, so results stay bitwise the same (golden states).
