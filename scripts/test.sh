@@ -34,12 +34,40 @@ stage() { echo "== test.sh: $1 ($(date +%T))"; }
 stage "Release build"
 cmake -S . -B "$BUILD" -DCMAKE_BUILD_TYPE=Release
 cmake --build "$BUILD" -j "$JOBS"
+# The later stages' builds start now, one after the other, at the lowest CPU priority (nice 19):
+# they get only the CPU time the tests leave idle (a test starting Python or a process, the
+# last long test running alone), so the tests run as fast as before, and each stage waits for
+# its own build before it runs.
+presets=()
+[ "${HPCM_FUZZ:-1}" = 0 ] || presets+=(fuzz)
+[ "${HPCM_SANITIZE:-1}" = 0 ] || presets+=(asan)
+[ "${HPCM_TSAN:-1}" = 0 ] || presets+=(tsan)
+LOGS="$BUILD/stage-builds"
+rm -rf "$LOGS" && mkdir -p "$LOGS"
+builder=""
+if [ ${#presets[@]} -gt 0 ]; then
+  # Job control on for this one job: it gets its own process group, which the trap ends with
+  # everything it started when the run stops early.
+  set -m
+  nice -n 19 bash scripts/stage_builds.sh "$LOGS" "$JOBS" "${presets[@]}" &
+  builder=$!
+  set +m
+  trap '[ -z "$builder" ] || kill -- -"$builder" 2>/dev/null || true' EXIT
+fi
+# Waits for PRESET's build, shows its output, and stops the run when it failed.
+wait_build() {
+  while [ ! -e "$LOGS/$1.status" ] && kill -0 "$builder" 2>/dev/null; do sleep 1; done
+  cat "$LOGS/$1.log" 2>/dev/null || true
+  if [ "$(cat "$LOGS/$1.status" 2>/dev/null)" != 0 ]; then
+    echo "test.sh: the $1 build failed (its output is above)" >&2
+    exit 1
+  fi
+}
 stage "test suite"
 ctest --test-dir "$BUILD" --output-on-failure -j "$JOBS"
 if [ "${HPCM_FUZZ:-1}" != 0 ]; then
   stage "fuzz harnesses"
-  cmake --preset fuzz
-  cmake --build --preset fuzz -j "$JOBS"
+  wait_build fuzz
   # One job per harness: each run is time-boxed (HPCM_FUZZ_SECONDS of wall time), so on two
   # cores three runs of 30 s together get the core-seconds three runs of 20 s one after the
   # other got, with no core idle behind the third.
@@ -47,14 +75,12 @@ if [ "${HPCM_FUZZ:-1}" != 0 ]; then
 fi
 if [ "${HPCM_SANITIZE:-1}" != 0 ]; then
   stage "ASan + UBSan build and test suite"
-  cmake --preset asan
-  cmake --build --preset asan -j "$JOBS"
+  wait_build asan
   ctest --preset asan -j "$JOBS"  # the preset leaves out the labels heavy and e2e
 fi
 if [ "${HPCM_TSAN:-1}" != 0 ]; then
   stage "ThreadSanitizer build and threaded tests"
-  cmake --preset tsan
-  cmake --build --preset tsan -j "$JOBS"
+  wait_build tsan
   ctest --preset tsan -j "$JOBS"
 fi
 stage "done"
