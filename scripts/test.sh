@@ -19,7 +19,8 @@
 #   NoFold simulations and the command-line runs on valid input, whose code the unit tests
 #   run under ASan; the hostile-input tests stay.
 # - Test sources compile at -O1 (Release) / -O0 (ASan) unless marked OPTIMIZED; the library
-#   keeps its flags (HPCM_TEST_OPTIMIZATION, tests/CMakeLists.txt).
+#   keeps its flags (HPCM_TEST_OPTIMIZATION, tests/CMakeLists.txt). Under ASan the command line
+#   and the body search compile at -O0 too (HPCM_GLUE_OPTIMIZATION).
 # - hpcm_cli, hpcm_test_core and the Python module are unity builds (every translation unit
 #   compiled CLI11 / GoogleTest / pybind11 anew); the solver and backend libraries are not,
 #   and keep their flags, so results stay bitwise the same (golden states).
@@ -34,40 +35,12 @@ stage() { echo "== test.sh: $1 ($(date +%T))"; }
 stage "Release build"
 cmake -S . -B "$BUILD" -DCMAKE_BUILD_TYPE=Release
 cmake --build "$BUILD" -j "$JOBS"
-# The later stages' builds start now, one after the other, at the lowest CPU priority (nice 19):
-# they get only the CPU time the tests leave idle (a test starting Python or a process, the
-# last long test running alone), so the tests run as fast as before, and each stage waits for
-# its own build before it runs.
-presets=()
-[ "${HPCM_FUZZ:-1}" = 0 ] || presets+=(fuzz)
-[ "${HPCM_SANITIZE:-1}" = 0 ] || presets+=(asan)
-[ "${HPCM_TSAN:-1}" = 0 ] || presets+=(tsan)
-LOGS="$BUILD/stage-builds"
-rm -rf "$LOGS" && mkdir -p "$LOGS"
-builder=""
-if [ ${#presets[@]} -gt 0 ]; then
-  # Job control on for this one job: it gets its own process group, which the trap ends with
-  # everything it started when the run stops early.
-  set -m
-  nice -n 19 bash scripts/stage_builds.sh "$LOGS" "$JOBS" "${presets[@]}" &
-  builder=$!
-  set +m
-  trap '[ -z "$builder" ] || kill -- -"$builder" 2>/dev/null || true' EXIT
-fi
-# Waits for PRESET's build, shows its output, and stops the run when it failed.
-wait_build() {
-  while [ ! -e "$LOGS/$1.status" ] && kill -0 "$builder" 2>/dev/null; do sleep 1; done
-  cat "$LOGS/$1.log" 2>/dev/null || true
-  if [ "$(cat "$LOGS/$1.status" 2>/dev/null)" != 0 ]; then
-    echo "test.sh: the $1 build failed (its output is above)" >&2
-    exit 1
-  fi
-}
 stage "test suite"
 ctest --test-dir "$BUILD" --output-on-failure -j "$JOBS"
 if [ "${HPCM_FUZZ:-1}" != 0 ]; then
   stage "fuzz harnesses"
-  wait_build fuzz
+  cmake --preset fuzz
+  cmake --build --preset fuzz -j "$JOBS"
   # One job per harness: each run is time-boxed (HPCM_FUZZ_SECONDS of wall time), so on two
   # cores three runs of 30 s together get the core-seconds three runs of 20 s one after the
   # other got, with no core idle behind the third.
@@ -75,12 +48,14 @@ if [ "${HPCM_FUZZ:-1}" != 0 ]; then
 fi
 if [ "${HPCM_SANITIZE:-1}" != 0 ]; then
   stage "ASan + UBSan build and test suite"
-  wait_build asan
+  cmake --preset asan
+  cmake --build --preset asan -j "$JOBS"
   ctest --preset asan -j "$JOBS"  # the preset leaves out the labels heavy and e2e
 fi
 if [ "${HPCM_TSAN:-1}" != 0 ]; then
   stage "ThreadSanitizer build and threaded tests"
-  wait_build tsan
+  cmake --preset tsan
+  cmake --build --preset tsan -j "$JOBS"
   ctest --preset tsan -j "$JOBS"
 fi
 stage "done"
