@@ -19,8 +19,7 @@
 #   NoFold simulations and the command-line runs on valid input, whose code the unit tests
 #   run under ASan; the hostile-input tests stay.
 # - Test sources compile at -O1 (Release) / -O0 (ASan) unless marked OPTIMIZED; the library
-#   keeps its flags (HPCM_TEST_OPTIMIZATION, tests/CMakeLists.txt). Under ASan the command line
-#   and the body search compile at -O0 too (HPCM_GLUE_OPTIMIZATION).
+#   keeps its flags (HPCM_TEST_OPTIMIZATION, tests/CMakeLists.txt).
 # - hpcm_cli, hpcm_test_core and the Python module are unity builds (every translation unit
 #   compiled CLI11 / GoogleTest / pybind11 anew); the solver and backend libraries are not,
 #   and keep their flags, so results stay bitwise the same (golden states).

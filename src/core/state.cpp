@@ -59,23 +59,22 @@ CellRange cells_in(const Model& m, const std::vector<Vec3>& disp, Int3 lo, Int3 
     for (int y = lo.y; y < std::min(hi.y, ny - 1); ++y)
       for (int x = lo.x; x < std::min(hi.x, nx - 1); ++x) {
         const Index base = m.index(x, y, z);
-        // The cell's 12 edges, oriented along +x, +y, +z: ex[j][k] joins (0, j, k) to (1, j, k),
-        // ey[i][k] and ez[i][j] likewise. Corner (i, j, k) spans the three edges through it.
-        const Vec3* c0 = &disp[static_cast<std::size_t>(base)];
-        Vec3 ex[2][2], ey[2][2], ez[2][2];
-        for (int b = 0; b < 2; ++b)
-          for (int a = 0; a < 2; ++a) {
-            const Vec3* px = c0 + a * sy + b * sz;
-            ex[a][b] = px[1] - px[0];
-            const Vec3* py = c0 + a + b * sz;
-            ey[a][b] = py[sy] - py[0];
-            const Vec3* pz = c0 + a + b * sy;
-            ez[a][b] = pz[sz] - pz[0];
-          }
+        // The cell's 12 edges, oriented along +x, +y, +z: exJK joins (0, J, K) to (1, J, K), eyIK
+        // and ezIJ likewise; corner (i, j, k) spans ex[j][k], ey[i][k] and ez[i][j]. Named
+        // values, not arrays: nothing of this frame lives in memory (ASan would check each use).
+        const Vec3* c = &disp[static_cast<std::size_t>(base)];
+        const Vec3 ex00 = c[1] - c[0], ex10 = c[1 + sy] - c[sy], ex01 = c[1 + sz] - c[sz], ex11 = c[1 + sy + sz] - c[sy + sz];
+        const Vec3 ey00 = c[sy] - c[0], ey10 = c[1 + sy] - c[1], ey01 = c[sy + sz] - c[sz], ey11 = c[1 + sy + sz] - c[1 + sz];
+        const Vec3 ez00 = c[sz] - c[0], ez10 = c[1 + sz] - c[1], ez01 = c[sy + sz] - c[sy], ez11 = c[1 + sy + sz] - c[1 + sy];
         double cell_min = 1e30;
-        for (int k = 0; k < 2; ++k)
-          for (int j = 0; j < 2; ++j)
-            for (int i = 0; i < 2; ++i) cell_min = std::min(cell_min, corner_determinant(ex[j][k], ey[i][k], ez[i][j]));
+        cell_min = std::min(cell_min, corner_determinant(ex00, ey00, ez00));  // (0, 0, 0)
+        cell_min = std::min(cell_min, corner_determinant(ex00, ey10, ez10));  // (1, 0, 0)
+        cell_min = std::min(cell_min, corner_determinant(ex10, ey00, ez01));  // (0, 1, 0)
+        cell_min = std::min(cell_min, corner_determinant(ex10, ey10, ez11));  // (1, 1, 0)
+        cell_min = std::min(cell_min, corner_determinant(ex01, ey01, ez00));  // (0, 0, 1)
+        cell_min = std::min(cell_min, corner_determinant(ex01, ey11, ez10));  // (1, 0, 1)
+        cell_min = std::min(cell_min, corner_determinant(ex11, ey01, ez01));  // (0, 1, 1)
+        cell_min = std::min(cell_min, corner_determinant(ex11, ey11, ez11));  // (1, 1, 1)
         r.min_det = std::min(r.min_det, cell_min);
         if (cell_min <= 0.0) ++r.folded;
       }
