@@ -79,7 +79,7 @@ class CpuBackend final : public Backend {
   /// The bricks written since `since` (stamp_written() first), into since_list_.
   const std::vector<Index>& written_since(std::uint64_t since);
   /// A write outside the stages (flags of a new FIXED set): element i's brick gets a stamp above
-  /// every one handed out so far (the next stamp_written() takes one at least as large).
+  /// every one this backend gave a host copy (the next stamp_written() takes one at least as large).
   void mark_written(Index i) { written_[static_cast<std::size_t>(grid_.brick_of_index(i))] = stamp_ + 1; }
   /// restore_links(); with `frame_end`, X- follows every element it moves.
   RestoreStats restore(bool frame_end);

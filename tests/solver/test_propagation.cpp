@@ -223,11 +223,7 @@ TEST(Propagation, ParallelEqualsDijkstraReferenceOnRandomLattices) {
     RandomCase rc = random_case(seed);
     const Model& m = rc.model;
     if (rc.grab.empty()) continue;
-    std::vector<Vec3> t1, t2;
-    for (std::size_t k = 0; k < rc.grab.size(); ++k) {
-      t1.push_back(rc.pull);
-      t2.push_back(rc.pull + Vec3{0.3f, -0.2f, 0.3f});
-    }
+    const std::vector<Vec3> t1(rc.grab.size(), rc.pull), t2(rc.grab.size(), rc.pull + Vec3{0.3f, -0.2f, 0.3f});
     expect_two_waves_equal(m, rc.grab, std::vector<std::uint8_t>(rc.grab.size(), kGrabbed), t1, t2, seed);
     ++cases;
   }
