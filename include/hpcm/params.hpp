@@ -24,6 +24,9 @@ struct SolverParams {
   int relax_sweeps = 8;            ///< K
   float relax_threshold = 0.03f;   ///< lattice units: smaller corrections are skipped (decides the reach, SPEC §8.8)
   float relax_omega = 1.85f;       ///< over-relaxation of each step (1 = Gauss-Seidel)
+  /// lattice units: within this distance of rest corrections below relax_threshold are skipped
+  /// (ChainMail's slack); farther from rest every correction is applied (solver::relax_step_applies)
+  float relax_slack = 1.0f;
   AnchorMode anchors = AnchorMode::Bone;
   int max_propagation_sweeps = 100000;  ///< safety cap
   /// Bricks where nothing moves sleep (cost nothing) until a neighbour, the wave or the tool
@@ -50,7 +53,7 @@ struct DynamicsParams {
   PerTissue inverse_mass{1.0f, 1.0f, 0.15f, 0.0f};  ///< at least one > 0
   float s_min = 0.0f, s_max = 1.0f;          ///< response-scale clamp, s_min <= s_max
   float dead_zone = 0.06f;                   ///< lattice units; at least kDeadZonePerThreshold * relax_threshold
-  float v_max = 0.5f;                        ///< lattice units per frame
+  float v_max = 1.0f;                        ///< lattice units per frame
   /// Lattice units per frame: a velocity below it is set to 0 (the element comes to
   /// rest and its brick can sleep); ignored when solver.sleep is false.
   float sleep_speed = 1e-7f;

@@ -97,6 +97,12 @@ std::vector<ParamSpec> make_table() {
                    "smaller relaxation corrections are skipped: decides how far a pull reaches (docs/tuning.md, Reach "
                    "and settling); with the velocity layer on, dynamics.dead_zone must be at least " + num(kDeadZonePerThreshold) + " times it",
                    {0, 0.999, true}));
+  t.push_back(real("solver.relax_slack", [](Params& p) -> float& { return p.solver.relax_slack; }, {0, 1e6}, lu,
+                   "within this distance of rest, relaxation corrections below solver.relax_threshold are skipped "
+                   "(ChainMail's slack); farther from rest every correction is applied, so released tissue returns to "
+                   "within it and tissue carried past rest is pulled back (docs/solver.md, Reach and slack); 0 applies "
+                   "every correction everywhere, 1e6 skips small corrections everywhere (the rule before this setting)",
+                   {0, 4, false}));
   t.push_back(real("solver.relax_omega", [](Params& p) -> float& { return p.solver.relax_omega; }, {1, 1.95}, "",
                    "over-relaxation of each relaxation step (1 = plain Gauss-Seidel, the paper's rule); enters the "
                    "stability rule"));

@@ -35,7 +35,6 @@ void CpuBackend::upload(const Model& m, const Params& p, const State& s) {
   p_ = p;
   k_ = dynamics::make_constants(p.dynamics, m.dims);
   wall_ = solver::make_wall(m.dims, p.dynamics.margin);
-  relax_threshold_sq_ = squared_threshold(p.solver.relax_threshold);
   const int threads = default_thread_count();
   if (!pool_ || pool_->threads() != threads) pool_ = std::make_unique<WorkerPool>(threads);
   st_.load(m, s, *pool_);
@@ -70,7 +69,6 @@ void CpuBackend::params_changed(const Params& p) {
   p_ = p;
   k_ = dynamics::make_constants(p.dynamics, m_->dims);
   wall_ = solver::make_wall(m_->dims, p.dynamics.margin);
-  relax_threshold_sq_ = squared_threshold(p.solver.relax_threshold);
   mark_all(unchecked_);  // a new margin may put elements outside the wall
   if (bricks_changed) {
     State s;
@@ -150,7 +148,7 @@ PropagateStats CpuBackend::propagate() {
 
 RelaxStats CpuBackend::relax(int sweeps) {
   if (!p_.solver.sleep) mark_all(hot_);  // every brick awake: the exact reference
-  const RelaxContext ctx = make_relax_context(st_, *m_, wall_, p_.solver, relax_threshold_sq_);
+  const RelaxContext ctx = make_relax_context(st_, *m_, wall_, p_.solver);
   return relaxation_.run(ctx, sweeps, hot_, touched_, worked_, *pool_);
 }
 

@@ -88,7 +88,6 @@ class CpuBackend final : public Backend {
   Params p_;
   dynamics::LayerConstants k_{};
   solver::Wall wall_;
-  float relax_threshold_sq_ = 0.0f;  ///< squared_threshold(p_.solver.relax_threshold)
   Storage st_;
   solver::BrickGrid grid_;
   solver::FixedParts fixed_;            ///< the installed FIXED set: still part and tool

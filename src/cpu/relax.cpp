@@ -82,25 +82,16 @@ float relax_element_scalar(const RelaxContext& c, int x, int y, int z) {
     out = solver::relax_element(g, count, cur, c.omega, wall);
   }
   const Vec3 d = out - cur;
-  const float corr = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
-  if (!(corr >= c.threshold) || corr == 0.0f) return 0.0f;  // small corrections are skipped
+  const float corr_sq = d.x * d.x + d.y * d.y + d.z * d.z;
+  const float disp_sq = cur.x * cur.x + cur.y * cur.y + cur.z * cur.z;
+  if (!solver::relax_step_applies(corr_sq, c.threshold_sq, disp_sq, c.slack_sq)) return 0.0f;
   c.p[0][k] = out.x;
   c.p[1][k] = out.y;
   c.p[2][k] = out.z;
-  return corr;
+  return std::sqrt(corr_sq);
 }
 
-float squared_threshold(float threshold) {
-  if (!(threshold > 0.0f)) return 0.0f;
-  // sqrtf is correctly rounded, hence monotone: step from threshold^2 to the boundary.
-  float s = threshold * threshold;
-  while (std::sqrt(s) < threshold) s = std::nextafter(s, solver::kInf);
-  while (s > 0.0f && std::sqrt(std::nextafter(s, 0.0f)) >= threshold) s = std::nextafter(s, 0.0f);
-  return s;
-}
-
-RelaxContext make_relax_context(Storage& st, const Model& m, const solver::Wall& wall, const SolverParams& s,
-                                float threshold_sq) {
+RelaxContext make_relax_context(Storage& st, const Model& m, const solver::Wall& wall, const SolverParams& s) {
   RelaxContext c;
   c.lay = &st.lay;
   for (int a = 0; a < 3; ++a) {
@@ -112,8 +103,8 @@ RelaxContext make_relax_context(Storage& st, const Model& m, const solver::Wall&
   c.time = st.time.data();
   c.model = &m;
   c.wall = wall;
-  c.threshold = s.relax_threshold;
-  c.threshold_sq = threshold_sq;
+  c.threshold_sq = solver::squared_length_bound(s.relax_threshold);
+  c.slack_sq = solver::squared_length_bound(s.relax_slack);
   c.omega = s.relax_omega;
   return c;
 }

@@ -32,19 +32,14 @@ struct RelaxContext {
   const float* time;             ///< arrival times (tie-break of the general rule)
   const Model* model;            ///< tolerances for the general rule
   solver::Wall wall;             ///< lattice coordinates (per element: solver::element_wall)
-  float threshold, omega;
-  /// The smallest squared correction whose square root reaches `threshold` (exact: the kernels
-  /// compare squares and take one square root of the largest, with the same outcome).
-  float threshold_sq;
+  float omega;
+  /// solver::squared_length_bound of SolverParams::relax_threshold and relax_slack: the kernels
+  /// compare squared lengths (solver::relax_step_applies), with the outcome of the lengths.
+  float threshold_sq, slack_sq;
 };
 
-/// threshold_sq for a threshold: the least s with sqrtf(s) >= threshold.
-float squared_threshold(float threshold);
-
-/// The context of a relaxation of the storage `st` of model `m` with these solver settings;
-/// `threshold_sq` is squared_threshold(s.relax_threshold) (callers compute it once).
-RelaxContext make_relax_context(Storage& st, const Model& m, const solver::Wall& wall, const SolverParams& s,
-                                float threshold_sq);
+/// The context of a relaxation of the storage `st` of model `m` with these solver settings.
+RelaxContext make_relax_context(Storage& st, const Model& m, const solver::Wall& wall, const SolverParams& s);
 
 /// One colour's elements with x0 <= x < x1 in rows y0 <= y < y1 of plane z (in each row, the
 /// half whose elements have that colour: x = 2j + h). An element j that moves marks brick

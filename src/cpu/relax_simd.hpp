@@ -51,6 +51,7 @@ float relax_span(const RelaxContext& c, const RelaxRun& r, int ya, int yb) {
   const V minus_inf = splat<V>(-solver::kInf), plus_inf = splat<V>(solver::kInf);
   const V zero = splat<V>(0.0f);
   const V omega = splat<V>(c.omega), threshold_sq = splat<V>(c.threshold_sq);
+  const V slack_sq = splat<V>(c.slack_sq);
   // The element's wall (solver::element_wall): wall - X0, lane by lane on x, per row on y and z.
   const V wall_lo_x = splat<V>(c.wall.lo[0]), wall_hi_x = splat<V>(c.wall.hi[0]);
   const V wall_lo_z = splat<V>(solver::wall_lo_of(c.wall, 2, r.z)), wall_hi_z = splat<V>(solver::wall_hi_of(c.wall, 2, r.z));
@@ -138,12 +139,12 @@ float relax_span(const RelaxContext& c, const RelaxRun& r, int ya, int yb) {
       // clampf, valid where lo <= hi
       const V out0 = vmax(lo0, vmin(hi0, t0)), out1 = vmax(lo1, vmin(hi1, t1)), out2 = vmax(lo2, vmin(hi2, t2));
       const V d0 = out0 - cur0, d1 = out1 - cur1, d2 = out2 - cur2;
-      // corr >= threshold exactly when corr^2 >= threshold_sq (RelaxContext::threshold_sq).
       const V corr_sq = d0 * d0 + d1 * d1 + d2 * d2;
+      const V disp_sq = cur0 * cur0 + cur1 * cur1 + cur2 * cur2;
       const M in_run = lane_index < splat<V>(static_cast<float>(i1 - j));
       const M boxes_meet = ~(lo0 > hi0) & ~(lo1 > hi1) & ~(lo2 > hi2);
       const M free = ((load_bytes<V>(flags + k) & static_cast<int>(kFixed)) == 0) & in_run;
-      const M apply = boxes_meet & free & (corr_sq >= threshold_sq) & (corr_sq != zero);
+      const M apply = boxes_meet & free & solver::relax_step_applies(corr_sq, threshold_sq, disp_sq, slack_sq);
       const unsigned applied = lane_bits<V>(apply), conflict = lane_bits<V>(free & ~boxes_meet);
       // No branch on `applied`: on a CT a tenth of the vectors apply nothing, scattered.
       if (j + N <= i1) {  // a full vector: every lane is this run's

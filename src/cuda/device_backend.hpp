@@ -393,7 +393,8 @@ class DeviceBackend final : public Backend {
     a.start = relax_start_;
     for (int r = 0; r < 3; ++r) a.phase[r] = relax_phase_[r];
     a.ctl = &ctl_->relax;
-    a.threshold = p_.solver.relax_threshold;
+    a.threshold_sq = solver::squared_length_bound(p_.solver.relax_threshold);
+    a.slack_sq = solver::squared_length_bound(p_.solver.relax_slack);
     a.omega = p_.solver.relax_omega;
     a.wall = wall_;
     a.sweeps = sweeps;

@@ -508,7 +508,9 @@ struct RelaxArgs {
   RelaxCtl* ctl = nullptr;
   std::uint8_t* start = nullptr;                              ///< per brick: first-sweep work
   std::uint8_t* phase[3] = {nullptr, nullptr, nullptr};       ///< per brick: changed in phase p (ring, p % 3)
-  float threshold = 1e-4f;
+  /// solver::squared_length_bound of SolverParams::relax_threshold and relax_slack
+  /// (solver::relax_step_applies)
+  float threshold_sq = 0.0f, slack_sq = solver::kInf;
   float omega = 1.0f;   ///< over-relaxation factor (SolverParams::relax_omega)
   solver::Wall wall;    ///< boundary box of every clamp (lattice coordinates; per element: solver::element_wall)
   int sweeps = 0;
@@ -594,8 +596,10 @@ HPCM_HD void relax_colour_block(const RelaxArgs& a, int p, RelaxShared& sh, B& b
         const Vec3 cur = L.disp[i];
         const Vec3 p = solver::relax_element(nb, c, cur, a.omega, solver::element_wall(a.wall, x, y, z));
         const Vec3 d = p - cur;
-        const float corr = sqrtf(d.x * d.x + d.y * d.y + d.z * d.z);
-        if (!(corr >= a.threshold) || corr == 0.0f) continue;  // small corrections are skipped
+        const float corr_sq = d.x * d.x + d.y * d.y + d.z * d.z;
+        const float disp_sq = cur.x * cur.x + cur.y * cur.y + cur.z * cur.z;
+        if (!solver::relax_step_applies(corr_sq, a.threshold_sq, disp_sq, a.slack_sq)) continue;
+        const float corr = sqrtf(corr_sq);
         L.disp[i] = p;
         sh.any = 1;
         at_max_u32(&sh.maxc, float_bits(corr));

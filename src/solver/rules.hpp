@@ -180,6 +180,30 @@ HPCM_HD inline T relax_coordinate(T cur, T q, T omega) {
   return from_bit_pattern<T>(back ? stepped : bits);
 }
 
+/// Whether the relaxation applies an element's step (SPEC §4, "Relaxation"): ChainMail's slack.
+/// Near rest, within `slack` of it, a correction smaller than the threshold is skipped, so still
+/// tissue stays still and a pull reaches only as far as its corrections are large (§8.8). An
+/// element farther from rest than `slack` takes every correction: released tissue returns to
+/// within the slack of rest instead of stopping wherever its corrections became small, and
+/// tissue carried past rest by its velocity is pulled back (docs/solver.md, "Reach and slack").
+/// Squared lengths, as squared_length_bound gives them; a zero step is never applied. On the
+/// lane type T, as relax_coordinate.
+template <class T>
+HPCM_HD inline auto relax_step_applies(T step_sq, T threshold_sq, T displacement_sq, T slack_sq) {
+  return ((step_sq >= threshold_sq) | (displacement_sq >= slack_sq)) & (step_sq != T{});
+}
+
+/// The least float s with sqrtf(s) >= length: a length compared as its square gives the same
+/// outcome as the length itself (sqrtf is correctly rounded, hence monotone). 0 for a length
+/// <= 0; +infinity stays +infinity. Host code: the backends compute it once per relaxation.
+inline float squared_length_bound(float length) {
+  if (!(length > 0.0f)) return 0.0f;
+  float s = length * length;
+  while (std::sqrt(s) < length) s = std::nextafter(s, kInf);
+  while (s > 0.0f && std::sqrt(std::nextafter(s, 0.0f)) >= length) s = std::nextafter(s, 0.0f);
+  return s;
+}
+
 /// A relaxation weight: 1 / (tau + 1e-4) for a neighbour of tolerance tau (relax_element; the
 /// CPU storage holds it per element).
 template <class T>

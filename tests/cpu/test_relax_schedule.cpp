@@ -30,8 +30,7 @@ struct Lattice {
   cpu::RelaxContext ctx{};
   Lattice(const Model& m, const Params& p, const State& s, cpu::WorkerPool& pool) {
     st.load(m, s, pool);
-    ctx = cpu::make_relax_context(st, m, solver::make_wall(m.dims, p.dynamics.margin), p.solver,
-                                  cpu::squared_threshold(p.solver.relax_threshold));
+    ctx = cpu::make_relax_context(st, m, solver::make_wall(m.dims, p.dynamics.margin), p.solver);
   }
 };
 

@@ -42,14 +42,7 @@ struct KnownFailure {
 // figure (in the comments).
 constexpr const char* kSlab =
     "SPEC §8.8 is required on the abdomen CT at f = 1; on the 10-slice DICOM slab it is reported (docs/tuning.md)";
-// On the abdomen CT at f = 1, C's skin&fat Peak is 0.6 % above B's (0.009756 against 0.009693)
-// since positions became displacements from rest: the same protocol rounds differently, and with
-// the relaxation threshold (0.03) such differences tip decisions; it held with absolute
-// positions. Reported, not tuned away (docs/tuning.md).
-constexpr const char* kRounding =
-    "C's skin&fat Peak within 1 % of B's on the abdomen CT: tipped by the rounding of displacements (docs/tuning.md)";
 constexpr KnownFailure kKnownFailures[] = {
-    {"abdomen_f1", "C_peak_below_B", 0.0094, 0.0101, kRounding},  // 0.009756 (B: 0.009693)
     {"dicom_f2", "C_skin_muscle_peak_ratio", 7.3, 10.0, kSlab},  // 9.68
     {"dicom_f2", "C_skin_muscle_auc_ratio", 6.4, 10.0, kSlab},   // 8.47
     {"dicom_f2", "A_skin_auc_below_C", 0.1, 0.21, kSlab},        // 0.163

@@ -50,6 +50,7 @@ constexpr const char* kBodyOnly =
 // or C (each class's mean speed is 0 or 1.4e-6 in one frame), so there is no motion to compare.
 constexpr const char* kBelowThreshold =
     "the tool moves only 0.0206 cells, below the relaxation threshold 0.03: after release nothing moves in A, B or C";
+constexpr const char* kAReturn = "A's skin&fat return after release is 16-18 % of C's motion";
 constexpr KnownFailure kKnownFailures[] = {
     {PhantomVariant::ThinTissue, 64, "C_peak_below_B", 0.0, 2e-6, kBelowThreshold},  // 1.38e-6 = B's
     {PhantomVariant::ThinTissue, 64, "C_auc_below_B", 0.0, 2e-6, kBelowThreshold},   // 1.38e-6 = B's
@@ -58,14 +59,30 @@ constexpr KnownFailure kKnownFailures[] = {
     {PhantomVariant::ThinTissue, 64, "C_hierarchy_auc", 0.0, 0.0, kBelowThreshold},
     {PhantomVariant::ThinTissue, 64, "A_skin_auc_below_C", 0.0, 1.0, kBelowThreshold},  // 1: A = C
     // SPEC §8.8 is the abdomen CT's local response. On the 64 phantoms muscle&organ is mostly the
-    // thin abdominal wall that moves with the skin, so the skin / muscle ratios are about 1.5, and
-    // A's return after release is about a quarter of C's motion. Reported, not required (docs/tuning.md).
-    {PhantomVariant::Standard, 64, "C_skin_muscle_peak_ratio", 1.2, 10.0, kBodyOnly},  // 1.578
-    {PhantomVariant::Standard, 64, "C_skin_muscle_auc_ratio", 1.15, 10.0, kBodyOnly},  // 1.518
-    {PhantomVariant::Standard, 64, "A_skin_auc_below_C", 0.0, 0.33, "A's skin&fat AUC after release is 26 % of C's"},
-    {PhantomVariant::Table, 64, "C_skin_muscle_peak_ratio", 1.2, 10.0, kBodyOnly},     // 1.586
-    {PhantomVariant::Table, 64, "C_skin_muscle_auc_ratio", 1.15, 10.0, kBodyOnly},     // 1.525
-    {PhantomVariant::Table, 64, "A_skin_auc_below_C", 0.0, 0.33, "A's skin&fat AUC after release is 26 % of C's"},
+    // thin abdominal wall that moves with the skin, so the skin / muscle ratios are 1.4-3.4, and
+    // A's return after release is 16-18 % of C's motion. Reported, not required (docs/tuning.md).
+    {PhantomVariant::Standard, 64, "C_skin_muscle_peak_ratio", 1.15, 10.0, kBodyOnly},  // 1.524
+    {PhantomVariant::Standard, 64, "C_skin_muscle_auc_ratio", 1.1, 10.0, kBodyOnly},    // 1.491
+    {PhantomVariant::Standard, 64, "A_skin_auc_below_C", 0.0, 0.22, kAReturn},          // 0.171
+    {PhantomVariant::Table, 64, "C_skin_muscle_peak_ratio", 1.15, 10.0, kBodyOnly},     // 1.532
+    {PhantomVariant::Table, 64, "C_skin_muscle_auc_ratio", 1.1, 10.0, kBodyOnly},       // 1.498
+    {PhantomVariant::Table, 64, "A_skin_auc_below_C", 0.0, 0.22, kAReturn},             // 0.171
+    {PhantomVariant::AirPockets, 64, "C_skin_muscle_peak_ratio", 1.15, 10.0, kBodyOnly},  // 1.576
+    {PhantomVariant::AirPockets, 64, "C_skin_muscle_auc_ratio", 1.1, 10.0, kBodyOnly},    // 1.496
+    {PhantomVariant::AirPockets, 64, "A_skin_auc_below_C", 0.0, 0.22, kAReturn},          // 0.172
+    {PhantomVariant::Anisotropic, 64, "C_skin_muscle_peak_ratio", 1.1, 10.0, kBodyOnly},  // 1.483
+    {PhantomVariant::Anisotropic, 64, "C_skin_muscle_auc_ratio", 1.1, 10.0, kBodyOnly},   // 1.441
+    {PhantomVariant::Anisotropic, 64, "A_skin_auc_below_C", 0.0, 0.23, kAReturn},         // 0.183
+    {PhantomVariant::ThickFat, 64, "C_skin_muscle_peak_ratio", 2.5, 10.0, kBodyOnly},     // 3.337
+    {PhantomVariant::ThickFat, 64, "C_skin_muscle_auc_ratio", 2.0, 10.0, kBodyOnly},      // 2.722
+    {PhantomVariant::ThickFat, 64, "A_skin_auc_below_C", 0.0, 0.21, kAReturn},            // 0.161
+    // Thick fat under C: the grab centre swings 0.73 cells past rest on its return and stays
+    // there, drifting slowly outward, inside the slack (solver.relax_slack 1), where corrections
+    // below the threshold are skipped: no reversal. The count depends on the phantom's noise:
+    // with seed 2 every 64 variant reverses at least twice, with seed 3 none of the five does
+    // (docs/tuning.md, "Slack and the velocity clamp"); this test uses seed 1.
+    {PhantomVariant::ThickFat, 64, "C_velocity_sign_changes", 0.0, 1.0,
+     "C's grab centre comes to a stop 0.73 cells past rest, inside the slack, without turning back"},
 };
 /// Entries of kKnownFailures for this phantom (each must be met: a renamed check bounds nothing).
 int known_failures_listed(PhantomVariant v, int nx) {
@@ -183,9 +200,11 @@ INSTANTIATE_TEST_SUITE_P(
     ::testing::Values(VariantCase{PhantomVariant::ThinTissue, {48, 48, 32}}, VariantCase{PhantomVariant::ThickFat, {48, 48, 32}},
                       VariantCase{PhantomVariant::AirPockets, {48, 48, 32}}, VariantCase{PhantomVariant::Table, {48, 48, 32}},
                       VariantCase{PhantomVariant::Anisotropic, {48, 48, 32}},
-                      // At 64 (large enough to be held to the motion checks, SPEC §8): the
-                      // standard phantom and the table, counting the body only (SPEC §3).
+                      // At 64 (large enough to be held to the motion checks, SPEC §8): every
+                      // variant, counting the body only (SPEC §3).
                       VariantCase{PhantomVariant::Standard, {64, 64, 48}}, VariantCase{PhantomVariant::Table, {64, 64, 48}},
+                      VariantCase{PhantomVariant::ThickFat, {64, 64, 48}}, VariantCase{PhantomVariant::AirPockets, {64, 64, 48}},
+                      VariantCase{PhantomVariant::Anisotropic, {64, 64, 48}},
                       // Thin tissue stays 2 elements thick at any size; at 64 A is measured to overshoot.
                       VariantCase{PhantomVariant::ThinTissue, {64, 64, 48}}),
     [](const ::testing::TestParamInfo<VariantCase>& info) {

@@ -143,6 +143,61 @@ TEST(Relaxation, DefaultThresholdSettlesNearRestAndStops) {
   std::printf("default threshold: %g from rest after 200 frames\n", d);
 }
 
+// ChainMail's slack (solver.relax_slack, solver::relax_step_applies). A smooth bump of 2 cells
+// in uniform fat: every correction is far below the threshold, so under the threshold-only rule
+// (slack 1e6) nothing moves and the bump stays; with a slack every element farther from rest
+// takes its corrections until the whole bump lies within the slack of rest, and then the
+// relaxation stops. Links stay in their boxes throughout.
+struct BumpResult {
+  float peak;   ///< largest distance from rest when the relaxation stopped
+  int calls;    ///< relax(8) calls until a call moved nothing
+  float worst_link;
+};
+BumpResult relax_smooth_bump(float slack) {
+  Params p = chainmail_params(8);
+  p.solver.relax_slack = slack;
+  const Model m = build_model(test::make_volume({48, 48, 48}, [](int, int, int) { return -100.0f; }), p);
+  State s;
+  s.disp.resize(static_cast<std::size_t>(m.size()));
+  s.vel.assign(s.disp.size(), Vec3{});
+  s.time.assign(s.disp.size(), solver::kInf);
+  s.flags.assign(s.disp.size(), 0);
+  for (int z = 0; z < 48; ++z)
+    for (int y = 0; y < 48; ++y)
+      for (int x = 0; x < 48; ++x) {
+        const float r2 = float((x - 24) * (x - 24) + (y - 24) * (y - 24) + (z - 24) * (z - 24));
+        s.disp[m.index(x, y, z)] = Vec3{0.0f, -2.0f * std::exp(-r2 / (2.0f * 10.0f * 10.0f)), 0.0f};
+      }
+  EXPECT_LE(max_link_violation(m, s.disp), 1e-5f) << "the bump must start with its links in their boxes";
+  auto backend = make_backend(BackendKind::Cpu);
+  backend->load(m, p, s);
+  BumpResult out{0.0f, 0, 0.0f};
+  for (; out.calls < 500; ++out.calls) {
+    const std::vector<Vec3> before = s.disp;
+    backend->snapshot();
+    backend->relax(8);
+    backend->download(s);
+    out.worst_link = std::max(out.worst_link, max_link_violation(m, s.disp));
+    if (s.disp == before) break;
+  }
+  out.peak = max_rest_distance(m, s);
+  return out;
+}
+
+TEST(Relaxation, SlackBoundsWhereTheRelaxationStops) {
+  const BumpResult threshold_only = relax_smooth_bump(1e6f);
+  EXPECT_EQ(threshold_only.calls, 0) << "corrections below the threshold must be skipped everywhere";
+  EXPECT_FLOAT_EQ(threshold_only.peak, 2.0f);
+  for (float slack : {1.0f, 0.5f}) {
+    const BumpResult b = relax_smooth_bump(slack);
+    std::printf("slack %g: stopped %g from rest after %d relaxations of 8 sweeps\n", slack, b.peak, b.calls);
+    EXPECT_LT(b.calls, 500) << "slack " << slack << ": the relaxation must stop";
+    EXPECT_LT(b.peak, slack) << "slack " << slack;
+    EXPECT_GT(b.peak, 0.5f * slack) << "slack " << slack << ": within the slack, small corrections are skipped";
+    EXPECT_LE(b.worst_link, 1e-5f) << "slack " << slack;
+  }
+}
+
 // Bitwise identical results with 1 and with 2 threads, full pipeline (condition C).
 TEST(Determinism, OneAndTwoThreadsBitwiseIdentical) {
   PhantomOptions o;
