@@ -37,15 +37,15 @@ struct KnownFailure {
 // applicable (SPEC §8), so its former failure (B turning once) is no longer listed.
 // SPEC §8.8 (local response) is the abdomen CT's at f = 1, where it holds with every other check.
 // On the DICOM series (a 10-slice slab at f = 2, pulled 1.66 units) it is reported: no tissue
-// farther than 40 units moves, but skin&fat moves 8-10 times muscle&organ (not 10) and A's
-// return is 16 % of C's motion (not below 10 %). Bounds about a quarter beyond the measured
+// farther than 40 units moves, but skin&fat moves about 9 times muscle&organ (not 10) and A's
+// return is 15 % of C's motion (not below 10 %). Bounds about a quarter beyond the measured
 // figure (in the comments).
 constexpr const char* kSlab =
     "SPEC §8.8 is required on the abdomen CT at f = 1; on the 10-slice DICOM slab it is reported (docs/tuning.md)";
 constexpr KnownFailure kKnownFailures[] = {
-    {"dicom_f2", "C_skin_muscle_peak_ratio", 7.3, 10.0, kSlab},  // 9.68
-    {"dicom_f2", "C_skin_muscle_auc_ratio", 6.4, 10.0, kSlab},   // 8.47
-    {"dicom_f2", "A_skin_auc_below_C", 0.1, 0.21, kSlab},        // 0.163
+    {"dicom_f2", "C_skin_muscle_peak_ratio", 6.6, 10.0, kSlab},  // 8.86
+    {"dicom_f2", "C_skin_muscle_auc_ratio", 6.5, 10.0, kSlab},   // 8.70
+    {"dicom_f2", "A_skin_auc_below_C", 0.1, 0.19, kSlab},        // 0.151
 };
 /// Entries of kKnownFailures for this CT (each must be met: a renamed check bounds nothing).
 int known_failures_listed(const std::string& ct) {
