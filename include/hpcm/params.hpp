@@ -20,6 +20,10 @@ AnchorMode parse_anchor_mode(const std::string& s, const std::string& what);
 
 struct SolverParams {
   float grab_radius = 1.5f;        ///< lattice units
+  /// Grabbed elements other than the centre that touch an anchored element outside the grab
+  /// slip from the tool (are not held): tissue bound to bone or the table does not follow it
+  /// (SPEC §4, infeasible requests). false holds every element within the radius.
+  bool grab_slip = true;
   int brick_size = 8;              ///< CPU bricks for sparse work
   int relax_sweeps = 8;            ///< K
   float relax_threshold = 0.03f;   ///< lattice units: smaller corrections are skipped (decides the reach, SPEC §8.8)

@@ -123,6 +123,8 @@ class Simulation {
  private:
   /// Grabs the elements within the ellipsoid of these per-axis radii (lattice units).
   void grab_within(Index centre, Vec3 radii);
+  /// solver.grab_slip: drops from the grab the elements other than `centre` bound to an anchor.
+  void let_bound_elements_slip(Index centre);
   void push_fixed();
   void compute_anchors();
   void compute_tool_limit();

@@ -117,6 +117,14 @@ std::vector<ParamSpec> make_table() {
   t.push_back(integer("solver.max_propagation_sweeps", [](Params& p) -> int& { return p.solver.max_propagation_sweeps; },
                       {1, 10000000}, "safety cap on propagation sweeps per frame", {1, 10000000, true}));
   {
+    ParamSpec s = spec("solver.grab_slip", ParamType::Flag);
+    s.flag = [](Params& p) -> bool& { return p.solver.grab_slip; };
+    s.help = "elements within the grab radius, other than the centre, that touch an anchored element outside the "
+             "grab slip from the tool: tissue bound to bone or the table does not follow it (docs/solver.md, The tool "
+             "limit); false holds every element within the radius";
+    t.push_back(std::move(s));
+  }
+  {
     ParamSpec s = spec("solver.sleep", ParamType::Flag);
     s.flag = [](Params& p) -> bool& { return p.solver.sleep; };
     s.help = "bricks (brick_size^3 elements) where nothing moves are skipped until the wave, a moving neighbour or "

@@ -150,10 +150,39 @@ void Simulation::grab_within(Index centre, Vec3 radii) {
           grab_origin_.push_back(backend_->displacement(i));
         }
       }
+  if (params_.solver.grab_slip) let_bound_elements_slip(centre);
   grab_centre_ = centre;
   tool_offset_ = requested_offset_ = {};
   compute_tool_limit();
   move_tool(Vec3{});
+}
+
+void Simulation::let_bound_elements_slip(Index centre) {
+  // Bound: a 6-neighbour is anchored and not grabbed itself (a grabbed anchor moves with the
+  // tool). Anchored elements and the centre stay held, so a grab on bone holds the bone.
+  std::vector<std::uint8_t> in_grab(static_cast<std::size_t>(model_.size()), 0);
+  for (Index g : grabbed_) in_grab[static_cast<std::size_t>(g)] = 1;
+  const auto bound = [&](Index g) {
+    const Int3 c = model_.coords(g);
+    const Int3 steps[6] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
+    for (const Int3& d : steps) {
+      const Int3 n{c.x + d.x, c.y + d.y, c.z + d.z};
+      if (n.x < 0 || n.y < 0 || n.z < 0 || n.x >= model_.dims.x || n.y >= model_.dims.y || n.z >= model_.dims.z) continue;
+      const auto k = static_cast<std::size_t>(model_.index(n.x, n.y, n.z));
+      if (anchored_[k] && !in_grab[k]) return true;
+    }
+    return false;
+  };
+  std::size_t kept = 0;
+  for (std::size_t k = 0; k < grabbed_.size(); ++k) {
+    const Index g = grabbed_[k];
+    if (g != centre && !anchored_[static_cast<std::size_t>(g)] && bound(g)) continue;
+    grabbed_[kept] = g;
+    grab_origin_[kept] = grab_origin_[k];
+    ++kept;
+  }
+  grabbed_.resize(kept);
+  grab_origin_.resize(kept);
 }
 
 void Simulation::move_tool(Vec3 offset) {

@@ -45,19 +45,13 @@ struct KnownFailure {
 constexpr const char* kBodyOnly =
     "counting the body only (SPEC §3), skin&fat's mean (skin, subcutaneous and still visceral fat) falls below "
     "muscle&organ's (the two-element wall moving with the skin); the pushed outside air no longer counts";
-// The thin-tissue phantom: the tool, limited by the bone under 2 elements of tissue, moves only
-// 0.0206 cells, less than the relaxation's threshold (0.03): after release nothing moves in A, B
-// or C (each class's mean speed is 0 or 1.4e-6 in one frame), so there is no motion to compare.
-constexpr const char* kBelowThreshold =
-    "the tool moves only 0.0206 cells, below the relaxation threshold 0.03: after release nothing moves in A, B or C";
 constexpr const char* kAReturn = "A's skin&fat return after release is 16-18 % of C's motion";
 constexpr KnownFailure kKnownFailures[] = {
-    {PhantomVariant::ThinTissue, 64, "C_peak_below_B", 0.0, 2e-6, kBelowThreshold},  // 1.38e-6 = B's
-    {PhantomVariant::ThinTissue, 64, "C_auc_below_B", 0.0, 2e-6, kBelowThreshold},   // 1.38e-6 = B's
-    {PhantomVariant::ThinTissue, 64, "C_hierarchy_initial", 0.0, 0.0, kBelowThreshold},
-    {PhantomVariant::ThinTissue, 64, "C_hierarchy_peak", 0.0, 0.0, kBelowThreshold},
-    {PhantomVariant::ThinTissue, 64, "C_hierarchy_auc", 0.0, 0.0, kBelowThreshold},
-    {PhantomVariant::ThinTissue, 64, "A_skin_auc_below_C", 0.0, 1.0, kBelowThreshold},  // 1: A = C
+    // Thin tissue: the fat bound to the anchored plate slips from the grab (solver.grab_slip),
+    // the tool pulls the skin 0.305 cells, and skin&fat moves 10.3 times muscle&organ in Peak but
+    // 7.3 times in AUC; A's return is a fifth of C's motion. Reported (SPEC §8.8 is the abdomen CT's).
+    {PhantomVariant::ThinTissue, 64, "C_skin_muscle_auc_ratio", 5.5, 10.0, "skin&fat AUC is 7.3 times muscle&organ's on thin tissue"},  // 7.33
+    {PhantomVariant::ThinTissue, 64, "A_skin_auc_below_C", 0.0, 0.26, "A's skin&fat return after release is a fifth of C's motion on thin tissue"},  // 0.204
     // SPEC §8.8 is the abdomen CT's local response. On the 64 phantoms muscle&organ is mostly the
     // thin abdominal wall that moves with the skin, so the skin / muscle ratios are 1.4-3.4, and
     // A's return after release is 16-18 % of C's motion. Reported, not required (docs/tuning.md).

@@ -105,6 +105,40 @@ INSTANTIATE_TEST_SUITE_P(Modes, ToolLimit,
 
 }  // namespace
 
+// solver.grab_slip: a grab of radius 1.5 centred on the top fat cell (two fat cells over the
+// anchored bone) takes the fat cells under it, which touch the bone. Held, they limit the tool
+// to the slack of one fat-bone link; slipping, they leave the tool to the top cell's chain of two
+// links, as a grab of radius 0.5 would. The centre always stays held.
+TEST(ToolLimit, ElementsBoundToAnAnchorSlipFromTheGrab) {
+  for (bool slip : {false, true}) {
+    Params p;
+    p.solver.grab_slip = slip;
+    const Model m = fat_over_bone(p);
+    Simulation sim(m, p);
+    const Index centre = m.index(10, kBoneTop + 2, 6);
+    sim.grab(centre, 1.5f);
+    int bound = 0;
+    bool has_centre = false;
+    for (Index g : sim.grabbed()) {
+      has_centre |= g == centre;
+      bound += m.coords(g).y == kBoneTop + 1;  // fat touching the bone
+    }
+    EXPECT_TRUE(has_centre);
+    if (slip) {
+      EXPECT_EQ(bound, 0) << "fat touching the anchored bone must slip";
+      // The centre's layer (9 cells within 1.5) and the 5 air cells above it stay.
+      EXPECT_EQ(sim.grabbed().size(), 14u);
+      EXPECT_NEAR(sim.tool_limit_hi().y, chain_slack(m, 10, 6), 1e-5f);
+    } else {
+      EXPECT_GT(bound, 0);
+      EXPECT_NEAR(sim.tool_limit_hi().y, m.link(1, m.index(10, kBoneTop, 6)).max_stretch, 1e-5f)
+          << "held, the bound fat limits the tool to its one link to the bone";
+    }
+    std::printf("grab_slip %d: %zu grabbed, tool limit %.6f\n", slip ? 1 : 0, sim.grabbed().size(),
+                sim.tool_limit_hi().y);
+  }
+}
+
 // A grab on the lattice's border with boundary margin 0: the wall allows no outward offset at
 // all, but offset 0 (the grab held where it is) is allowed and is not reported as limited;
 // an outward pull is limited to exactly 0, an inward one is free.
