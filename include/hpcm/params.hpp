@@ -30,7 +30,7 @@ struct SolverParams {
   float relax_omega = 1.85f;       ///< over-relaxation of each step (1 = Gauss-Seidel)
   /// lattice units: within this distance of rest corrections below relax_threshold are skipped
   /// (ChainMail's slack); farther from rest every correction is applied (solver::relax_step_applies)
-  float relax_slack = 0.3f;
+  float relax_slack = 1.0f;
   AnchorMode anchors = AnchorMode::Bone;
   int max_propagation_sweeps = 100000;  ///< safety cap
   /// Bricks where nothing moves sleep (cost nothing) until a neighbour, the wave or the tool
@@ -53,11 +53,11 @@ struct DynamicsParams {
   DampingMode mode = DampingMode::Viscoelastic;
   float alpha = 0.98f;                       ///< simple damping
   float b0 = 0.035f;                         ///< viscoelastic constant term
-  PerTissue b1{0.0f, 0.02f, 0.02f, 0.02f};       ///< viscoelastic displacement term; air 0
+  PerTissue b1{0.0f, 0.15f, 0.15f, 0.15f};       ///< viscoelastic displacement term; air 0
   PerTissue inverse_mass{1.0f, 1.0f, 0.15f, 0.0f};  ///< at least one > 0
   float s_min = 0.0f, s_max = 1.0f;          ///< response-scale clamp, s_min <= s_max
   float dead_zone = 0.06f;                   ///< lattice units; at least kDeadZonePerThreshold * relax_threshold
-  float v_max = 2.0f;                        ///< lattice units per frame
+  float v_max = 1.0f;                        ///< lattice units per frame
   /// Lattice units per frame: a velocity below it is set to 0 (the element comes to
   /// rest and its brick can sleep); ignored when solver.sleep is false.
   float sleep_speed = 1e-7f;

@@ -104,11 +104,11 @@ TEST(ParamsFile, DefaultsRoundTrip) {
 TEST(ParamsFile, DefaultFileDocumentsEveryKeyWithItsRange) {
   const std::string text = cfg::default_params_toml();
   for (const char* key : {"t1 = -1000.0", "t2 = 25.0", "t3 = 375.0", "grab_radius = 1.5", "brick_size = 8",
-                          "relax_sweeps = 8", "relax_threshold = 0.03", "relax_slack = 0.3", "relax_omega = 1.85", "anchors = \"bone\"",
+                          "relax_sweeps = 8", "relax_threshold = 0.03", "relax_slack = 1.0", "relax_omega = 1.85", "anchors = \"bone\"",
                           "max_propagation_sweeps = 100000", "grab_slip = true", "mode = \"viscoelastic\"", "alpha = 0.98", "b0 = 0.035",
-                          "b1 = { air = 0.0, skin_fat = 0.02, muscle_organ = 0.02, bone = 0.02 }",
+                          "b1 = { air = 0.0, skin_fat = 0.15, muscle_organ = 0.15, bone = 0.15 }",
                           "inverse_mass = { air = 1.0, skin_fat = 1.0, muscle_organ = 0.15, bone = 0.0 }", "s_min = 0.0",
-                          "s_max = 1.0", "dead_zone = 0.06", "v_max = 2.0", "beta = 1.0",
+                          "s_max = 1.0", "dead_zone = 0.06", "v_max = 1.0", "beta = 1.0",
                           "rho = { air = 1.0, skin_fat = 1.0, muscle_organ = 1.0, bone = 1.0 }", "margin = 2.0", "sleep = true",
                           "sleep_speed = 1e-07",
                           "{ hu = -1000.0, tau = 0.5, w = 1.0 }", "{ hu = 700.0, tau = 0.005, w = 0.02 }", "preset"})
