@@ -1,6 +1,6 @@
 // Sleeping bricks (solver.sleep, dynamics.sleep_speed): the paper protocol with sleeping and
 // with every brick kept awake (the exact reference) stays within 1e-3 lattice units per element
-// on every frame under A and C (measured: at most 3e-6; B: see the bound below), sleeping really stops the work once the tissue is
+// on every frame under A, B and C (measured: at most 5e-6), sleeping really stops the work once the tissue is
 // still, and the behaviour checks hold with every brick awake too.
 #include <gtest/gtest.h>
 
@@ -40,11 +40,11 @@ TEST(Sleep, WithinOneThousandthOfTheAwakeReferenceAndComesToRest) {
   // B (alpha 0.98) moves, and its links are restored, in every frame up to about frame 600, then
   // takes about 800 frames more to fall below sleep_speed (measured: idle from frame ~1400).
   constexpr int kSettle = 1400;
-  // The bound on |x_sleep - x_awake|: 1e-3 (measured 0 under A, 2.6e-6 under C). Under B, whose
-  // links leave their boxes and are restored in every frame of that long phase, a velocity zeroed
-  // by sleeping (at most 1e-7 / (1 - alpha) = 5e-6 of position) tips a relaxation-threshold
-  // decision: measured 0.036 (docs/solver.md, "Sleeping"). Bounded, so a worsening fails.
-  auto bound = [](DampingMode m) { return m == DampingMode::Simple ? 0.05f : 1e-3f; };
+  // The bound on |x_sleep - x_awake|: 1e-3 (measured 0 under A, 4.6e-6 under B, 2.8e-6 under C;
+  // SPEC §4 allows 1e-2). A velocity zeroed by sleeping (at most 1e-7 / (1 - alpha) = 5e-6 of
+  // position) can tip a relaxation-threshold decision, which moves an element by the threshold
+  // (0.03): before the relaxation slack it did under B (0.036; docs/solver.md, "Sleeping").
+  auto bound = [](DampingMode) { return 1e-3f; };
   for (DampingMode mode : {DampingMode::None, DampingMode::Simple, DampingMode::Viscoelastic}) {
     Params asleep = base, awake = base;
     asleep.dynamics.mode = awake.dynamics.mode = mode;
