@@ -13,6 +13,7 @@
 #include "cli_common.hpp"
 #include "hpcm/config.hpp"
 #include "hpcm/experiment.hpp"
+#include "hpcm/param_table.hpp"
 #include "memory_estimate.hpp"
 #include "output_dir.hpp"
 #include "pull_limit_notes.hpp"
@@ -52,18 +53,26 @@ nlohmann::json body_json(const Model& m) {
   return j;
 }
 
+// Every parameter, written from the parameter table (the one declaration of each key), so the
+// summary records every setting a run used: {section: {name: value}}, material points as rows.
 nlohmann::json params_json(const Params& p) {
+  Params q = p;  // the table's accessors take a mutable Params
   nlohmann::json j;
-  j["tissue"] = {{"t1", p.tissue.t1}, {"t2", p.tissue.t2}, {"t3", p.tissue.t3}};
-  for (const auto& pt : p.material.points) j["material"]["points"].push_back({{"hu", pt.hu}, {"tau", pt.tau}, {"w", pt.w}});
-  j["solver"] = {{"grab_radius", p.solver.grab_radius}, {"brick_size", p.solver.brick_size},
-                 {"relax_sweeps", p.solver.relax_sweeps}, {"relax_threshold", p.solver.relax_threshold},
-                 {"anchors", anchor_mode_name(p.solver.anchors)}, {"max_propagation_sweeps", p.solver.max_propagation_sweeps}};
-  const auto& d = p.dynamics;
-  j["dynamics"] = {{"alpha", d.alpha}, {"b0", d.b0}, {"b1", per_tissue_json(d.b1)},
-                   {"inverse_mass", per_tissue_json(d.inverse_mass)}, {"s_min", d.s_min}, {"s_max", d.s_max},
-                   {"dead_zone", d.dead_zone}, {"v_max", d.v_max}, {"beta", d.beta}, {"rho", per_tissue_json(d.rho)},
-                   {"margin", d.margin}};
+  for (const ParamSpec& s : param_table()) {
+    nlohmann::json& v = j[s.section()][s.name()];
+    switch (s.type) {
+      case ParamType::Real: v = s.real(q); break;
+      case ParamType::Integer: v = s.integer(q); break;
+      case ParamType::Flag: v = s.flag(q); break;
+      case ParamType::Choice: v = s.choice_name(q); break;
+      case ParamType::PerClass: v = per_tissue_json(s.per_class(q)); break;
+      case ParamType::Points:
+        v = nlohmann::json::array();
+        for (const MaterialPoint& pt : s.points(q)) v.push_back({{"hu", pt.hu}, {"tau", pt.tau}, {"w", pt.w}});
+        break;
+      case ParamType::PointField: j[s.section()].erase(s.name()); break;  // a column of the rows above
+    }
+  }
   return j;
 }
 

@@ -125,6 +125,33 @@ def check_centre_velocity(label, summary):
             fail(f"{label}: condition {c}: grab centre velocity after release {'non-zero' if moving else 'zero'}")
 
 
+def check_params_recorded(hpcm, summary):
+    """summary.json's "params" holds every key of `hpcm params --defaults` (the parameter table),
+    in its section, with the default's value (the run used the defaults)."""
+    import tomllib
+    defaults = tomllib.loads(subprocess.run([hpcm, "params", "--defaults"], capture_output=True, text=True,
+                                            check=True).stdout)
+    recorded = summary["params"]
+    for section, keys in defaults.items():
+        for key, value in keys.items():
+            if key not in recorded.get(section, {}):
+                fail(f"summary.json params: {section}.{key} is missing")
+            got = recorded[section][key]
+            if isinstance(value, dict):  # per tissue class
+                value, got = list(value.values()), [got[c] for c in value]
+            if isinstance(value, list):  # per class, or the material's points as rows
+                flat = lambda v: [x for e in v for x in (e.values() if isinstance(e, dict) else [e])]
+                if len(flat(got)) != len(flat(value)) or any(abs(g - w) > 1e-6 * max(1.0, abs(w))
+                                                             for g, w in zip(flat(got), flat(value))):
+                    fail(f"summary.json params: {section}.{key} = {got}, the default is {value}")
+                continue
+            if isinstance(value, float) and abs(got - value) > 1e-6 * max(1.0, abs(value)):
+                fail(f"summary.json params: {section}.{key} = {got}, the default is {value}")
+            if isinstance(value, (bool, str, int)) and not isinstance(value, float) and got != value:
+                fail(f"summary.json params: {section}.{key} = {got!r}, the default is {value!r}")
+    ok(f"summary.json records every parameter ({sum(len(k) for k in defaults.values())} keys)")
+
+
 def main():
     if len(sys.argv) != 3:
         fail("usage: experiment_checks.py HPCM SCRATCH")
@@ -145,6 +172,7 @@ def main():
     if f"not applicable ({reason})" not in report:
         fail("24x24x16: report.md does not give the reason")
     ok("24x24x16: the motion checks are not applicable, with the lattice as the reason")
+    check_params_recorded(hpcm, summary)
 
     summary, stdout, report = run_experiment(hpcm, scratch, "64,64,8")
     check_common("64x64x8", summary, stdout, report)
