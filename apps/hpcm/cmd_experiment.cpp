@@ -59,6 +59,7 @@ nlohmann::json params_json(const Params& p) {
   Params q = p;  // the table's accessors take a mutable Params
   nlohmann::json j;
   for (const ParamSpec& s : param_table()) {
+    if (s.type == ParamType::PointField) continue;  // a column of material.points, written as rows
     nlohmann::json& v = j[s.section()][s.name()];
     switch (s.type) {
       case ParamType::Real: v = s.real(q); break;
@@ -70,7 +71,7 @@ nlohmann::json params_json(const Params& p) {
         v = nlohmann::json::array();
         for (const MaterialPoint& pt : s.points(q)) v.push_back({{"hu", pt.hu}, {"tau", pt.tau}, {"w", pt.w}});
         break;
-      case ParamType::PointField: j[s.section()].erase(s.name()); break;  // a column of the rows above
+      case ParamType::PointField: break;
     }
   }
   return j;

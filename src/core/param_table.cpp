@@ -33,6 +33,12 @@ ParamSpec integer(std::string key, int& (*field)(Params&), ParamRange range, std
   return s;
 }
 
+ParamSpec flag(std::string key, bool& (*field)(Params&), std::string help) {
+  ParamSpec s = spec(std::move(key), ParamType::Flag);
+  s.flag = field, s.help = std::move(help);
+  return s;
+}
+
 ParamSpec per_class(std::string key, PerTissue& (*field)(Params&), ParamRange range, std::string help,
                     SliderHint slider = {0, 0}) {
   ParamSpec s = spec(std::move(key), ParamType::PerClass, range);
@@ -116,22 +122,14 @@ std::vector<ParamSpec> make_table() {
   }
   t.push_back(integer("solver.max_propagation_sweeps", [](Params& p) -> int& { return p.solver.max_propagation_sweeps; },
                       {1, 10000000}, "safety cap on propagation sweeps per frame", {1, 10000000, true}));
-  {
-    ParamSpec s = spec("solver.grab_slip", ParamType::Flag);
-    s.flag = [](Params& p) -> bool& { return p.solver.grab_slip; };
-    s.help = "elements within the grab radius, other than the centre, that touch an anchored element outside the "
-             "grab slip from the tool: tissue bound to bone or the table does not follow it (docs/solver.md, The tool "
-             "limit); false holds every element within the radius";
-    t.push_back(std::move(s));
-  }
-  {
-    ParamSpec s = spec("solver.sleep", ParamType::Flag);
-    s.flag = [](Params& p) -> bool& { return p.solver.sleep; };
-    s.help = "bricks (brick_size^3 elements) where nothing moves are skipped until the wave, a moving neighbour or "
-             "the tool wakes them; false keeps every brick awake every frame (the exact reference, for measuring "
-             "what sleeping changes)";
-    t.push_back(std::move(s));
-  }
+  t.push_back(flag("solver.grab_slip", [](Params& p) -> bool& { return p.solver.grab_slip; },
+                   "elements within the grab radius, other than the centre, that touch an anchored element outside the "
+                   "grab slip from the tool: tissue bound to bone or the table does not follow it (docs/solver.md, The "
+                   "tool limit); false holds every element within the radius"));
+  t.push_back(flag("solver.sleep", [](Params& p) -> bool& { return p.solver.sleep; },
+                   "bricks (brick_size^3 elements) where nothing moves are skipped until the wave, a moving neighbour or "
+                   "the tool wakes them; false keeps every brick awake every frame (the exact reference, for measuring "
+                   "what sleeping changes)"));
 
   // [dynamics]
   {

@@ -10,6 +10,7 @@
 #include <sstream>
 #include <utility>
 
+#include "solver/neighbours.hpp"
 #include "solver/tool_limit.hpp"
 
 #include "pipeline/format_number.hpp"
@@ -164,14 +165,13 @@ void Simulation::let_bound_elements_slip(Index centre) {
   for (Index g : grabbed_) in_grab[static_cast<std::size_t>(g)] = 1;
   const auto bound = [&](Index g) {
     const Int3 c = model_.coords(g);
-    const Int3 steps[6] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
-    for (const Int3& d : steps) {
-      const Int3 n{c.x + d.x, c.y + d.y, c.z + d.z};
-      if (n.x < 0 || n.y < 0 || n.z < 0 || n.x >= model_.dims.x || n.y >= model_.dims.y || n.z >= model_.dims.z) continue;
-      const auto k = static_cast<std::size_t>(model_.index(n.x, n.y, n.z));
-      if (anchored_[k] && !in_grab[k]) return true;
-    }
-    return false;
+    bool found = false;
+    solver::for_each_face_neighbour(model_.dims.x, model_.dims.y, model_.dims.z, c.x, c.y, c.z, g,
+                                    [&](Index n, int, int, Index, Index) {
+                                      const auto k = static_cast<std::size_t>(n);
+                                      found |= anchored_[k] && !in_grab[k];
+                                    });
+    return found;
   };
   std::size_t kept = 0;
   for (std::size_t k = 0; k < grabbed_.size(); ++k) {
