@@ -52,7 +52,7 @@ inline constexpr float kDeadZonePerThreshold = 2.0f;
 struct DynamicsParams {
   DampingMode mode = DampingMode::Viscoelastic;
   float alpha = 0.98f;                       ///< simple damping
-  float b0 = 0.035f;                         ///< viscoelastic constant term
+  float b0 = 0.03f;                          ///< viscoelastic constant term
   PerTissue b1{0.0f, 0.15f, 0.15f, 0.15f};       ///< viscoelastic displacement term; air 0
   PerTissue inverse_mass{1.0f, 1.0f, 0.15f, 0.0f};  ///< at least one > 0
   float s_min = 0.0f, s_max = 1.0f;          ///< response-scale clamp, s_min <= s_max

@@ -105,7 +105,7 @@ TEST(ParamsFile, DefaultFileDocumentsEveryKeyWithItsRange) {
   const std::string text = cfg::default_params_toml();
   for (const char* key : {"t1 = -1000.0", "t2 = 25.0", "t3 = 375.0", "grab_radius = 1.5", "brick_size = 8",
                           "relax_sweeps = 8", "relax_threshold = 0.03", "relax_slack = 1.0", "relax_omega = 1.85", "anchors = \"bone\"",
-                          "max_propagation_sweeps = 100000", "grab_slip = true", "mode = \"viscoelastic\"", "alpha = 0.98", "b0 = 0.035",
+                          "max_propagation_sweeps = 100000", "grab_slip = true", "mode = \"viscoelastic\"", "alpha = 0.98", "b0 = 0.03",
                           "b1 = { air = 0.0, skin_fat = 0.15, muscle_organ = 0.15, bone = 0.15 }",
                           "inverse_mass = { air = 1.0, skin_fat = 1.0, muscle_organ = 0.15, bone = 0.0 }", "s_min = 0.0",
                           "s_max = 1.0", "dead_zone = 0.06", "v_max = 1.0", "beta = 1.0",

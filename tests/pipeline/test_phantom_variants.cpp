@@ -45,38 +45,32 @@ struct KnownFailure {
 constexpr const char* kBodyOnly =
     "counting the body only (SPEC §3), skin&fat's mean (skin, subcutaneous and still visceral fat) falls below "
     "muscle&organ's (the two-element wall moving with the skin); the pushed outside air no longer counts";
-constexpr const char* kAReturn = "A's skin&fat return after release is 16-18 % of C's motion";
+constexpr const char* kAReturn = "A's skin&fat return after release is 16-17 % of C's motion";
 constexpr KnownFailure kKnownFailures[] = {
     // Thin tissue: the fat bound to the anchored plate slips from the grab (solver.grab_slip),
-    // the tool pulls the skin 0.305 cells, and skin&fat moves 10.3 times muscle&organ in Peak but
-    // 7.3 times in AUC; A's return is a fifth of C's motion. Reported (SPEC §8.8 is the abdomen CT's).
-    {PhantomVariant::ThinTissue, 64, "C_skin_muscle_auc_ratio", 5.5, 10.0, "skin&fat AUC is 7.3 times muscle&organ's on thin tissue"},  // 7.33
-    {PhantomVariant::ThinTissue, 64, "A_skin_auc_below_C", 0.0, 0.26, "A's skin&fat return after release is a fifth of C's motion on thin tissue"},  // 0.204
+    // the tool pulls the skin 0.305 cells, and skin&fat moves 9.9 times muscle&organ in Peak and
+    // 8.7 times in AUC; A's return is a sixth of C's motion. Reported (SPEC §8.8 is the abdomen CT's).
+    {PhantomVariant::ThinTissue, 64, "C_skin_muscle_peak_ratio", 7.5, 10.0, "skin&fat Peak is 9.9 times muscle&organ's on thin tissue"},  // 9.93
+    {PhantomVariant::ThinTissue, 64, "C_skin_muscle_auc_ratio", 6.5, 10.0, "skin&fat AUC is 8.7 times muscle&organ's on thin tissue"},    // 8.69
+    {PhantomVariant::ThinTissue, 64, "A_skin_auc_below_C", 0.0, 0.22, "A's skin&fat return after release is a sixth of C's motion on thin tissue"},  // 0.168
     // SPEC §8.8 is the abdomen CT's local response. On the 64 phantoms muscle&organ is mostly the
     // thin abdominal wall that moves with the skin, so the skin / muscle ratios are 1.4-3.4, and
-    // A's return after release is 16-18 % of C's motion. Reported, not required (docs/tuning.md).
-    {PhantomVariant::Standard, 64, "C_skin_muscle_peak_ratio", 1.15, 10.0, kBodyOnly},  // 1.524
-    {PhantomVariant::Standard, 64, "C_skin_muscle_auc_ratio", 1.1, 10.0, kBodyOnly},    // 1.491
-    {PhantomVariant::Standard, 64, "A_skin_auc_below_C", 0.0, 0.22, kAReturn},          // 0.171
-    {PhantomVariant::Table, 64, "C_skin_muscle_peak_ratio", 1.15, 10.0, kBodyOnly},     // 1.532
-    {PhantomVariant::Table, 64, "C_skin_muscle_auc_ratio", 1.1, 10.0, kBodyOnly},       // 1.498
-    {PhantomVariant::Table, 64, "A_skin_auc_below_C", 0.0, 0.22, kAReturn},             // 0.171
-    {PhantomVariant::AirPockets, 64, "C_skin_muscle_peak_ratio", 1.15, 10.0, kBodyOnly},  // 1.576
-    {PhantomVariant::AirPockets, 64, "C_skin_muscle_auc_ratio", 1.1, 10.0, kBodyOnly},    // 1.496
-    {PhantomVariant::AirPockets, 64, "A_skin_auc_below_C", 0.0, 0.22, kAReturn},          // 0.172
-    {PhantomVariant::Anisotropic, 64, "C_skin_muscle_peak_ratio", 1.1, 10.0, kBodyOnly},  // 1.483
-    {PhantomVariant::Anisotropic, 64, "C_skin_muscle_auc_ratio", 1.1, 10.0, kBodyOnly},   // 1.441
-    {PhantomVariant::Anisotropic, 64, "A_skin_auc_below_C", 0.0, 0.23, kAReturn},         // 0.183
-    {PhantomVariant::ThickFat, 64, "C_skin_muscle_peak_ratio", 2.5, 10.0, kBodyOnly},     // 3.337
-    {PhantomVariant::ThickFat, 64, "C_skin_muscle_auc_ratio", 2.0, 10.0, kBodyOnly},      // 2.722
-    {PhantomVariant::ThickFat, 64, "A_skin_auc_below_C", 0.0, 0.21, kAReturn},            // 0.161
-    // Thick fat under C: the grab centre swings 0.73 cells past rest on its return and stays
-    // there, drifting slowly outward, inside the slack (solver.relax_slack 1), where corrections
-    // below the threshold are skipped: no reversal. The count depends on the phantom's noise:
-    // with seed 2 every 64 variant reverses at least twice, with seed 3 none of the five does
-    // (docs/tuning.md, "Slack and the velocity clamp"); this test uses seed 1.
-    {PhantomVariant::ThickFat, 64, "C_velocity_sign_changes", 0.0, 1.0,
-     "C's grab centre comes to a stop 0.73 cells past rest, inside the slack, without turning back"},
+    // A's return after release is 16-17 % of C's motion. Reported, not required (docs/tuning.md).
+    {PhantomVariant::Standard, 64, "C_skin_muscle_peak_ratio", 1.15, 10.0, kBodyOnly},  // 1.521
+    {PhantomVariant::Standard, 64, "C_skin_muscle_auc_ratio", 1.1, 10.0, kBodyOnly},    // 1.485
+    {PhantomVariant::Standard, 64, "A_skin_auc_below_C", 0.0, 0.22, kAReturn},          // 0.162
+    {PhantomVariant::Table, 64, "C_skin_muscle_peak_ratio", 1.15, 10.0, kBodyOnly},     // 1.529
+    {PhantomVariant::Table, 64, "C_skin_muscle_auc_ratio", 1.1, 10.0, kBodyOnly},       // 1.492
+    {PhantomVariant::Table, 64, "A_skin_auc_below_C", 0.0, 0.22, kAReturn},             // 0.162
+    {PhantomVariant::AirPockets, 64, "C_skin_muscle_peak_ratio", 1.15, 10.0, kBodyOnly},  // 1.577
+    {PhantomVariant::AirPockets, 64, "C_skin_muscle_auc_ratio", 1.1, 10.0, kBodyOnly},    // 1.509
+    {PhantomVariant::AirPockets, 64, "A_skin_auc_below_C", 0.0, 0.22, kAReturn},          // 0.165
+    {PhantomVariant::Anisotropic, 64, "C_skin_muscle_peak_ratio", 1.1, 10.0, kBodyOnly},  // 1.466
+    {PhantomVariant::Anisotropic, 64, "C_skin_muscle_auc_ratio", 1.1, 10.0, kBodyOnly},   // 1.427
+    {PhantomVariant::Anisotropic, 64, "A_skin_auc_below_C", 0.0, 0.23, kAReturn},         // 0.170
+    {PhantomVariant::ThickFat, 64, "C_skin_muscle_peak_ratio", 2.5, 10.0, kBodyOnly},     // 3.389
+    {PhantomVariant::ThickFat, 64, "C_skin_muscle_auc_ratio", 2.0, 10.0, kBodyOnly},      // 2.799
+    {PhantomVariant::ThickFat, 64, "A_skin_auc_below_C", 0.0, 0.21, kAReturn},            // 0.155
 };
 /// Entries of kKnownFailures for this phantom (each must be met: a renamed check bounds nothing).
 int known_failures_listed(PhantomVariant v, int nx) {
