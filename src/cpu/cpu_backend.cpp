@@ -187,7 +187,9 @@ RestoreStats CpuBackend::restore(bool frame_end) {
     solver::BrickGrid::to_list(fold_bricks_, check_list_);
     seeds_.clear();
     RestoreStats links;  // the guard reports the cells it found folded, not these links
-    solver::find_violations(*m_, grid_, check_list_, access, wall_, seeds_, links);
+    // The same elements as solver::find_violations over these bricks (the check is its exact
+    // rule, sorted and unique), found by the threads and the vector filter.
+    check_.run(st_, grid_, check_list_, wall_, seeds_, links, *pool_);
     rs = {};
     restorer_.guard_folds(*m_, grid_, seeds_, access, wall_, moved, rs);
   } else {
