@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <functional>
 
 namespace hpcm::cpu {
 
@@ -62,6 +63,10 @@ void CpuBackend::upload(const Model& m, const Params& p, const State& s) {
   layer_.init(grid_, kernels.layer);
   check_.init(kernels.link_check);
   restorer_.init(m);
+  // The fold guard's search for folded cells on the pool (the same cells, found faster).
+  restorer_.set_parallel([this](std::int64_t items, const std::function<void(std::int64_t)>& item) {
+    pool_->run(items, [&item](std::int64_t i) { item(i); });
+  });
 }
 
 void CpuBackend::params_changed(const Params& p) {

@@ -1,6 +1,7 @@
 #include "solver/link_restore.hpp"
 
 #include <algorithm>
+#include <utility>
 
 #include "hpcm/state.hpp"
 #include "solver/neighbours.hpp"
@@ -46,10 +47,19 @@ void find_violations(const Model& m, const BrickGrid& grid, const std::vector<In
   seeds.erase(std::unique(seeds.begin() + static_cast<std::ptrdiff_t>(first), seeds.end()), seeds.end());
 }
 
-void find_fold_suspects(const Model& m, const std::vector<Index>& elements, const RestoreAccess& pos,
-                        std::vector<Index>& suspects) {
-  const std::size_t first = suspects.size();
-  for (Index e : elements) {
+namespace {
+
+/// Sorts and deduplicates v from `first` on.
+void sort_unique_from(std::vector<Index>& v, std::size_t first) {
+  std::sort(v.begin() + static_cast<std::ptrdiff_t>(first), v.end());
+  v.erase(std::unique(v.begin() + static_cast<std::ptrdiff_t>(first), v.end()), v.end());
+}
+
+/// The ends of the fold-violating links of elements [begin, end), appended unsorted.
+void append_fold_suspects(const Model& m, const Index* begin, const Index* end, const RestoreAccess& pos,
+                          std::vector<Index>& suspects) {
+  for (const Index* it = begin; it != end; ++it) {
+    const Index e = *it;
     const Int3 c = m.coords(e);
     const Vec3 ue = pos.displacement(e);
     for_each_face_neighbour(m.dims.x, m.dims.y, m.dims.z, c.x, c.y, c.z, e,
@@ -63,26 +73,27 @@ void find_fold_suspects(const Model& m, const std::vector<Index>& elements, cons
                               }
                             });
   }
-  std::sort(suspects.begin() + static_cast<std::ptrdiff_t>(first), suspects.end());
-  suspects.erase(std::unique(suspects.begin() + static_cast<std::ptrdiff_t>(first), suspects.end()), suspects.end());
 }
 
-Index find_folded_cells(const Model& m, const std::vector<Index>& elements, const RestoreAccess& pos,
-                        std::vector<Index>& corners) {
-  const Index sy = m.dims.x, sz = static_cast<Index>(m.dims.x) * m.dims.y;
-  const std::size_t first = corners.size();
-  // The cells with a corner among `elements`: bases up to one cell below each on every axis.
-  std::vector<Index> bases;
-  for (Index e : elements) {
-    const Int3 c = m.coords(e);
+/// The base (lowest corner) of every cell with a corner among elements [begin, end), appended
+/// unsorted: up to one cell below each element on every axis.
+void append_cell_bases(const Model& m, const Index* begin, const Index* end, std::vector<Index>& bases) {
+  for (const Index* it = begin; it != end; ++it) {
+    const Int3 c = m.coords(*it);
     for (int z = std::max(c.z - 1, 0); z <= std::min(c.z, m.dims.z - 2); ++z)
       for (int y = std::max(c.y - 1, 0); y <= std::min(c.y, m.dims.y - 2); ++y)
         for (int x = std::max(c.x - 1, 0); x <= std::min(c.x, m.dims.x - 2); ++x) bases.push_back(m.index(x, y, z));
   }
-  std::sort(bases.begin(), bases.end());
-  bases.erase(std::unique(bases.begin(), bases.end()), bases.end());
+}
+
+/// Tests the cells with bases [begin, end) (each once); appends the 8 corners of each folded
+/// cell, unsorted, and returns how many folded.
+Index test_cells(const Model& m, const Index* begin, const Index* end, const RestoreAccess& pos,
+                 std::vector<Index>& corners) {
+  const Index sy = m.dims.x, sz = static_cast<Index>(m.dims.x) * m.dims.y;
   Index folded = 0;
-  for (Index base : bases) {
+  for (const Index* it = begin; it != end; ++it) {
+    const Index base = *it;
     bool fold = false;
     for (int k = 0; k < 2 && !fold; ++k)
       for (int j = 0; j < 2 && !fold; ++j)
@@ -100,8 +111,78 @@ Index find_folded_cells(const Model& m, const std::vector<Index>& elements, cons
       for (int j = 0; j < 2; ++j)
         for (int i = 0; i < 2; ++i) corners.push_back(base + i + j * sy + k * sz);
   }
-  std::sort(corners.begin() + static_cast<std::ptrdiff_t>(first), corners.end());
-  corners.erase(std::unique(corners.begin() + static_cast<std::ptrdiff_t>(first), corners.end()), corners.end());
+  return folded;
+}
+
+/// Splits [0, n) into chunks of at least kMinChunk elements for `parallel`.
+constexpr std::int64_t kMinChunk = 256, kMaxChunks = 16;
+std::int64_t chunks_for(std::size_t n) {
+  return std::max<std::int64_t>(1, std::min<std::int64_t>(kMaxChunks, static_cast<std::int64_t>(n) / kMinChunk));
+}
+std::pair<std::size_t, std::size_t> chunk_range(std::size_t n, std::int64_t chunks, std::int64_t i) {
+  return {n * static_cast<std::size_t>(i) / static_cast<std::size_t>(chunks),
+          n * static_cast<std::size_t>(i + 1) / static_cast<std::size_t>(chunks)};
+}
+
+}  // namespace
+
+void find_fold_suspects(const Model& m, const std::vector<Index>& elements, const RestoreAccess& pos,
+                        std::vector<Index>& suspects) {
+  const std::size_t first = suspects.size();
+  append_fold_suspects(m, elements.data(), elements.data() + elements.size(), pos, suspects);
+  sort_unique_from(suspects, first);
+}
+
+void find_fold_suspects(const Model& m, const std::vector<Index>& elements, const RestoreAccess& pos,
+                        std::vector<Index>& suspects, const ParallelFor& parallel) {
+  const std::int64_t chunks = chunks_for(elements.size());
+  std::vector<std::vector<Index>> found(static_cast<std::size_t>(chunks));
+  parallel(chunks, [&](std::int64_t i) {
+    const auto [b, e] = chunk_range(elements.size(), chunks, i);
+    append_fold_suspects(m, elements.data() + b, elements.data() + e, pos, found[static_cast<std::size_t>(i)]);
+  });
+  const std::size_t first = suspects.size();
+  for (const auto& f : found) suspects.insert(suspects.end(), f.begin(), f.end());
+  sort_unique_from(suspects, first);
+}
+
+Index find_folded_cells(const Model& m, const std::vector<Index>& elements, const RestoreAccess& pos,
+                        std::vector<Index>& corners) {
+  const std::size_t first = corners.size();
+  std::vector<Index> bases;
+  append_cell_bases(m, elements.data(), elements.data() + elements.size(), bases);
+  sort_unique_from(bases, 0);
+  const Index folded = test_cells(m, bases.data(), bases.data() + bases.size(), pos, corners);
+  sort_unique_from(corners, first);
+  return folded;
+}
+
+Index find_folded_cells(const Model& m, const std::vector<Index>& elements, const RestoreAccess& pos,
+                        std::vector<Index>& corners, const ParallelFor& parallel) {
+  const std::int64_t chunks = chunks_for(elements.size());
+  std::vector<std::vector<Index>> part(static_cast<std::size_t>(chunks));
+  parallel(chunks, [&](std::int64_t i) {
+    const auto [b, e] = chunk_range(elements.size(), chunks, i);
+    append_cell_bases(m, elements.data() + b, elements.data() + e, part[static_cast<std::size_t>(i)]);
+  });
+  std::vector<Index> bases;
+  for (const auto& p : part) bases.insert(bases.end(), p.begin(), p.end());
+  sort_unique_from(bases, 0);  // each cell once: tested in one chunk only
+  const std::int64_t cell_chunks = chunks_for(bases.size());
+  std::vector<Index> folded_in(static_cast<std::size_t>(cell_chunks), 0);
+  part.assign(static_cast<std::size_t>(cell_chunks), {});
+  parallel(cell_chunks, [&](std::int64_t i) {
+    const auto [b, e] = chunk_range(bases.size(), cell_chunks, i);
+    folded_in[static_cast<std::size_t>(i)] =
+        test_cells(m, bases.data() + b, bases.data() + e, pos, part[static_cast<std::size_t>(i)]);
+  });
+  const std::size_t first = corners.size();
+  Index folded = 0;
+  for (std::int64_t i = 0; i < cell_chunks; ++i) {
+    folded += folded_in[static_cast<std::size_t>(i)];
+    corners.insert(corners.end(), part[static_cast<std::size_t>(i)].begin(), part[static_cast<std::size_t>(i)].end());
+  }
+  sort_unique_from(corners, first);
   return folded;
 }
 
@@ -116,9 +197,15 @@ void LinkRestorer::guard_folds(const Model& m, const BrickGrid& grid, const std:
     guard_elements_ = link_seeds;
     guard_elements_.insert(guard_elements_.end(), guard_moved_.begin(), guard_moved_.end());
     suspects_.clear();
-    find_fold_suspects(m, guard_elements_, pos, suspects_);
     folded_corners_.clear();
-    const Index folded = suspects_.empty() ? 0 : find_folded_cells(m, suspects_, pos, folded_corners_);
+    Index folded = 0;
+    if (parallel_) {
+      find_fold_suspects(m, guard_elements_, pos, suspects_, parallel_);
+      if (!suspects_.empty()) folded = find_folded_cells(m, suspects_, pos, folded_corners_, parallel_);
+    } else {
+      find_fold_suspects(m, guard_elements_, pos, suspects_);
+      if (!suspects_.empty()) folded = find_folded_cells(m, suspects_, pos, folded_corners_);
+    }
     if (round == 0) st.violated_links = folded;
     if (folded == 0) break;
     // The last round restores every link found outside its box: then none can fold a cell.

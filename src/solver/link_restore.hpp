@@ -4,6 +4,7 @@
 // Used by the CPU backend on its storage and by the CUDA backend on a host copy; positions are
 // reached through RestoreAccess, so the element storage order is the backend's business.
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "hpcm/model.hpp"
@@ -38,6 +39,17 @@ void find_fold_suspects(const Model& m, const std::vector<Index>& elements, cons
 Index find_folded_cells(const Model& m, const std::vector<Index>& elements, const RestoreAccess& pos,
                         std::vector<Index>& corners);
 
+/// Runs item(i) for every i in [0, items), in any order and on any threads (a backend's pool);
+/// the callers merge what the items found into sorted, unique lists, so the result is the same.
+using ParallelFor = std::function<void(std::int64_t items, const std::function<void(std::int64_t)>& item)>;
+
+/// find_fold_suspects and find_folded_cells in chunks run by `parallel`: the same lists and
+/// count (sorted, unique; a cell is tested once, in the chunk of bases it falls in).
+void find_fold_suspects(const Model& m, const std::vector<Index>& elements, const RestoreAccess& pos,
+                        std::vector<Index>& suspects, const ParallelFor& parallel);
+Index find_folded_cells(const Model& m, const std::vector<Index>& elements, const RestoreAccess& pos,
+                        std::vector<Index>& corners, const ParallelFor& parallel);
+
 /// Rounds of the fold guard that restore only the folded cells' corners before it restores every
 /// link of the region (LinkRestorer::guard_folds).
 inline constexpr int kFoldGuardRounds = 3;
@@ -56,6 +68,8 @@ class LinkRestorer {
                    const Wall& wall, std::vector<std::uint8_t>& moved, RestoreStats& st);
   /// The cap on each pass, in visits per lattice element (kRestoreVisitsPerElement; tests lower it).
   void set_visits_per_element(int visits) { visits_per_element_ = visits; }
+  /// Lets the fold guard's search for folded cells run on a backend's threads (same result).
+  void set_parallel(ParallelFor parallel) { parallel_ = std::move(parallel); }
   /// Restores consistency around `seeds` (ascending, unique linear indices): every link and
   /// the wall, FIXED elements untouched. Bricks whose elements moved are flagged in `moved`;
   /// st.moved counts the elements moved.
@@ -85,6 +99,7 @@ class LinkRestorer {
   std::uint32_t epoch_ = 0;
   std::vector<float> val_[2];  ///< coordinate b under the two pass orders
   int visits_per_element_ = kRestoreVisitsPerElement;
+  ParallelFor parallel_;  ///< empty: the guard's search runs on the calling thread
 };
 
 }  // namespace hpcm::solver

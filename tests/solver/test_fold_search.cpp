@@ -1,0 +1,74 @@
+// The fold guard's search for folded cells in chunks (solver::find_fold_suspects and
+// solver::find_folded_cells with a ParallelFor, which the CPU backend runs on its pool) finds
+// the same suspects, the same folded cells and the same corners as the one-thread search,
+// whatever order or threads run the chunks: a frame's result must not depend on them.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <random>
+#include <thread>
+
+#include "hpcm/state.hpp"
+#include "solver/link_restore.hpp"
+#include "solver_test_util.hpp"
+
+using namespace hpcm;
+
+namespace {
+
+struct VectorAccess : solver::RestoreAccess {
+  const std::vector<Vec3>& pos;
+  explicit VectorAccess(const std::vector<Vec3>& p) : pos(p) {}
+  Vec3 displacement(Index i) const override { return pos[static_cast<std::size_t>(i)]; }
+  void set_coordinate(Index, int, float) override { ADD_FAILURE() << "the search must not move anything"; }
+  bool fixed(Index) const override { return false; }
+};
+
+// Items in reverse order on this thread.
+void reverse_order(std::int64_t items, const std::function<void(std::int64_t)>& item) {
+  for (std::int64_t i = items - 1; i >= 0; --i) item(i);
+}
+
+// Items split between two threads (run by the ThreadSanitizer job: the chunks share nothing).
+void two_threads(std::int64_t items, const std::function<void(std::int64_t)>& item) {
+  std::thread odd([&] {
+    for (std::int64_t i = 1; i < items; i += 2) item(i);
+  });
+  for (std::int64_t i = 0; i < items; i += 2) item(i);
+  odd.join();
+}
+
+}  // namespace
+
+TEST(FoldSearch, ChunksFindTheSameCellsAsOneThread) {
+  const Model m = build_model(test::make_volume({40, 36, 30}, [](int x, int y, int) { return (x + y) % 5 < 2 ? 50.0f : -100.0f; }),
+                              Params{});
+  const std::size_t n = static_cast<std::size_t>(m.size());
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> jitter(-0.45f, 0.45f);
+  std::uniform_int_distribution<Index> pick(0, m.size() - 1);
+  for (int trial = 0; trial < 4; ++trial) {
+    // A smooth field with scattered kicks: many links outside their fold boxes, some cells folded.
+    std::vector<Vec3> u(n, Vec3{});
+    for (int k = 0; k < 1500 * (trial + 1); ++k) u[static_cast<std::size_t>(pick(rng))] = Vec3{jitter(rng), jitter(rng), jitter(rng)};
+    const VectorAccess pos(u);
+    std::vector<Index> elements;
+    for (Index e = 0; e < m.size(); ++e)
+      if (!(u[static_cast<std::size_t>(e)] == Vec3{})) elements.push_back(e);
+
+    std::vector<Index> suspects, corners;
+    solver::find_fold_suspects(m, elements, pos, suspects);
+    const Index folded = solver::find_folded_cells(m, suspects, pos, corners);
+    ASSERT_GT(suspects.size(), 1000u) << "trial " << trial;
+    ASSERT_GT(folded, 0) << "trial " << trial << ": the case must fold cells to compare anything";
+
+    for (const solver::ParallelFor& parallel : {solver::ParallelFor(reverse_order), solver::ParallelFor(two_threads)}) {
+      std::vector<Index> s2, c2;
+      solver::find_fold_suspects(m, elements, pos, s2, parallel);
+      const Index f2 = solver::find_folded_cells(m, s2, pos, c2, parallel);
+      EXPECT_EQ(s2, suspects) << "trial " << trial;
+      EXPECT_EQ(f2, folded) << "trial " << trial;
+      EXPECT_EQ(c2, corners) << "trial " << trial;
+    }
+  }
+}
