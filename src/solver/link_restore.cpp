@@ -94,15 +94,19 @@ Index test_cells(const Model& m, const Index* begin, const Index* end, const Res
   Index folded = 0;
   for (const Index* it = begin; it != end; ++it) {
     const Index base = *it;
+    // The cell's 8 corners, loaded once: every edge of a corner's test runs to another corner.
+    Vec3 u[2][2][2];
+    for (int k = 0; k < 2; ++k)
+      for (int j = 0; j < 2; ++j)
+        for (int i = 0; i < 2; ++i) u[k][j][i] = pos.displacement(base + i + j * sy + k * sz);
     bool fold = false;
     for (int k = 0; k < 2 && !fold; ++k)
       for (int j = 0; j < 2 && !fold; ++j)
         for (int i = 0; i < 2 && !fold; ++i) {
-          const Index c = base + i + j * sy + k * sz;
-          const Vec3 u = pos.displacement(c);
-          const Vec3 dx = i ? u - pos.displacement(c - 1) : pos.displacement(c + 1) - u;
-          const Vec3 dy = j ? u - pos.displacement(c - sy) : pos.displacement(c + sy) - u;
-          const Vec3 dz = k ? u - pos.displacement(c - sz) : pos.displacement(c + sz) - u;
+          const Vec3& c = u[k][j][i];
+          const Vec3 dx = i ? c - u[k][j][0] : u[k][j][1] - c;
+          const Vec3 dy = j ? c - u[k][0][i] : u[k][1][i] - c;
+          const Vec3 dz = k ? c - u[0][j][i] : u[1][j][i] - c;
           fold = corner_determinant(dx, dy, dz) <= 0.0;
         }
     if (!fold) continue;
