@@ -128,6 +128,19 @@ std::pair<std::size_t, std::size_t> chunk_range(std::size_t n, std::int64_t chun
           n * static_cast<std::size_t>(i + 1) / static_cast<std::size_t>(chunks)};
 }
 
+/// Runs append(begin, end, out) over chunks of `in` on `parallel`, each into its own list, and
+/// appends the lists to `out` in chunk order (the callers sort them).
+template <class Append>
+void append_in_chunks(const std::vector<Index>& in, const ParallelFor& parallel, Append append, std::vector<Index>& out) {
+  const std::int64_t chunks = chunks_for(in.size());
+  std::vector<std::vector<Index>> part(static_cast<std::size_t>(chunks));
+  parallel(chunks, [&](std::int64_t i) {
+    const auto [b, e] = chunk_range(in.size(), chunks, i);
+    append(in.data() + b, in.data() + e, part[static_cast<std::size_t>(i)]);
+  });
+  for (const auto& p : part) out.insert(out.end(), p.begin(), p.end());
+}
+
 }  // namespace
 
 void find_fold_suspects(const Model& m, const std::vector<Index>& elements, const RestoreAccess& pos,
@@ -139,14 +152,10 @@ void find_fold_suspects(const Model& m, const std::vector<Index>& elements, cons
 
 void find_fold_suspects(const Model& m, const std::vector<Index>& elements, const RestoreAccess& pos,
                         std::vector<Index>& suspects, const ParallelFor& parallel) {
-  const std::int64_t chunks = chunks_for(elements.size());
-  std::vector<std::vector<Index>> found(static_cast<std::size_t>(chunks));
-  parallel(chunks, [&](std::int64_t i) {
-    const auto [b, e] = chunk_range(elements.size(), chunks, i);
-    append_fold_suspects(m, elements.data() + b, elements.data() + e, pos, found[static_cast<std::size_t>(i)]);
-  });
   const std::size_t first = suspects.size();
-  for (const auto& f : found) suspects.insert(suspects.end(), f.begin(), f.end());
+  append_in_chunks(
+      elements, parallel,
+      [&](const Index* b, const Index* e, std::vector<Index>& out) { append_fold_suspects(m, b, e, pos, out); }, suspects);
   sort_unique_from(suspects, first);
 }
 
@@ -163,29 +172,17 @@ Index find_folded_cells(const Model& m, const std::vector<Index>& elements, cons
 
 Index find_folded_cells(const Model& m, const std::vector<Index>& elements, const RestoreAccess& pos,
                         std::vector<Index>& corners, const ParallelFor& parallel) {
-  const std::int64_t chunks = chunks_for(elements.size());
-  std::vector<std::vector<Index>> part(static_cast<std::size_t>(chunks));
-  parallel(chunks, [&](std::int64_t i) {
-    const auto [b, e] = chunk_range(elements.size(), chunks, i);
-    append_cell_bases(m, elements.data() + b, elements.data() + e, part[static_cast<std::size_t>(i)]);
-  });
   std::vector<Index> bases;
-  for (const auto& p : part) bases.insert(bases.end(), p.begin(), p.end());
+  append_in_chunks(
+      elements, parallel, [&](const Index* b, const Index* e, std::vector<Index>& out) { append_cell_bases(m, b, e, out); },
+      bases);
   sort_unique_from(bases, 0);  // each cell once: tested in one chunk only
-  const std::int64_t cell_chunks = chunks_for(bases.size());
-  std::vector<Index> folded_in(static_cast<std::size_t>(cell_chunks), 0);
-  part.assign(static_cast<std::size_t>(cell_chunks), {});
-  parallel(cell_chunks, [&](std::int64_t i) {
-    const auto [b, e] = chunk_range(bases.size(), cell_chunks, i);
-    folded_in[static_cast<std::size_t>(i)] =
-        test_cells(m, bases.data() + b, bases.data() + e, pos, part[static_cast<std::size_t>(i)]);
-  });
   const std::size_t first = corners.size();
-  Index folded = 0;
-  for (std::int64_t i = 0; i < cell_chunks; ++i) {
-    folded += folded_in[static_cast<std::size_t>(i)];
-    corners.insert(corners.end(), part[static_cast<std::size_t>(i)].begin(), part[static_cast<std::size_t>(i)].end());
-  }
+  append_in_chunks(
+      bases, parallel,
+      [&](const Index* b, const Index* e, std::vector<Index>& out) { static_cast<void>(test_cells(m, b, e, pos, out)); },
+      corners);
+  const Index folded = static_cast<Index>((corners.size() - first) / 8);  // 8 corners per folded cell, before the merge
   sort_unique_from(corners, first);
   return folded;
 }
