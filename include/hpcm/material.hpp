@@ -56,26 +56,23 @@ HPCM_HD inline LinkLimits limits_from_tau(float tau, float w) {
   return {b.min_stretch, b.max_stretch, b.shear, w};
 }
 
-/// Smallest axial spacing of a link's fold box (less where the link's own box allows less).
-inline constexpr float kFoldMinSpacing = 0.5f;
-/// Column dominance every fold box keeps: axial spacing - 2 * shear >= this (as the shear cap).
-inline constexpr float kFoldMargin = 0.02f;
+/// The least column dominance the fold guard accepts at a link (column_dominance): where every
+/// edge of a cell has at least this, every corner determinant is at least its cube (1e-6) > 0.
+/// Links in their boxes have at least 0.02 (the shear cap), so the guard never looks at them.
+inline constexpr float kFoldDominance = 0.01f;
 
-/// The fold box of a link: a box around its Gibson box (never smaller) inside which the link
-/// cannot take part in a fold. A cell's corner Jacobian has the three edges leaving the corner as
-/// columns; where each edge's axial spacing is at least s and its two shear components at most
-/// (s - kFoldMargin) / 2, every column is diagonally dominant with a positive diagonal, so the
-/// determinant is positive. Stretching never folds: no upper limit. The least spacing s is
-/// kFoldMinSpacing, but never above the link's own (1 - 0.8 tau) and never below what its own
-/// shear limit needs (2 shear + kFoldMargin, which the shear cap keeps within its own spacing).
-/// A cell can fold only where one of its edges is outside its fold box: the fold guard tests
-/// the cells around those edges only (docs/solver.md, "No fold").
-HPCM_HD inline LinkLimits fold_limits(const LinkLimits& L) {
-  const float own_spacing = 1.0f + L.min_stretch, shear_needs = 2.0f * L.shear + kFoldMargin;
-  const float wide = kFoldMinSpacing > shear_needs ? kFoldMinSpacing : shear_needs;
-  const float spacing = wide < own_spacing ? wide : own_spacing;
-  const float dominant_shear = 0.5f * (spacing - kFoldMargin);
-  return {spacing - 1.0f, __builtin_huge_valf(), dominant_shear > L.shear ? dominant_shear : L.shear, L.w};
+/// The column dominance of a link along axis a with ends displaced by u_lo and u_hi from rest:
+/// its axial spacing minus its two shear offsets, 1 + (u_hi - u_lo)_a - sum_{b != a}
+/// |(u_hi - u_lo)_b|. A cell corner's Jacobian has the three edges leaving the corner as columns;
+/// where each has a positive dominance d_a, det >= prod_a d_a > 0 (Ostrowski's bound), so a
+/// cell can fold only where one of its edges has a dominance of 0 or less (docs/solver.md, "No
+/// fold"). Stretching never folds.
+HPCM_HD inline float column_dominance(const Vec3& u_lo, const Vec3& u_hi, int a) {
+  const Vec3 d = u_hi - u_lo;
+  float dominance = 1.0f + d[a];
+  for (int b = 0; b < 3; ++b)
+    if (b != a) dominance -= d[b] < 0.0f ? -d[b] : d[b];
+  return dominance;
 }
 
 /// Range of the link time penalty w. The propagation's time buckets are w_min wide; arrival

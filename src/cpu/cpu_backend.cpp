@@ -177,8 +177,8 @@ RestoreStats CpuBackend::restore(bool frame_end) {
   if (seeds_.empty()) return rs;
   std::vector<std::uint8_t> moved(touched_.size(), 0);
   if (frame_end) {
-    // As the CUDA backend: the bricks with a + link outside its fold box (such a link is outside
-    // its box, so its lower end is a seed), then the links outside their boxes in those bricks.
+    // As the CUDA backend: the bricks with a + link that may take part in a fold (such a link is
+    // outside its box, so its lower end is a seed), then the links outside their boxes there.
     fold_bricks_.assign(touched_.size(), 0);
     const Int3 d = m_->dims;
     const Index stride[3] = {1, d.x, static_cast<Index>(d.x) * d.y};
@@ -186,7 +186,7 @@ RestoreStats CpuBackend::restore(bool frame_end) {
       const Int3 c = m_->coords(e);
       const int cc[3] = {c.x, c.y, c.z}, n[3] = {d.x, d.y, d.z};
       for (int a = 0; a < 3; ++a)
-        if (cc[a] + 1 < n[a] && solver::outside_fold_box(access.displacement(e), access.displacement(e + stride[a]), m_->link(a, e), a))
+        if (cc[a] + 1 < n[a] && solver::may_fold(access.displacement(e), access.displacement(e + stride[a]), a))
           fold_bricks_[static_cast<std::size_t>(grid_.brick_of_index(e))] = 1;
     }
     solver::BrickGrid::to_list(fold_bricks_, check_list_);

@@ -106,7 +106,7 @@ class CpuBackend final : public Backend {
   LinkCheck check_;
   solver::LinkRestorer restorer_;
   std::vector<Index> check_list_, seeds_;
-  std::vector<std::uint8_t> fold_bricks_;  ///< frame end: bricks with a + link outside its fold box
+  std::vector<std::uint8_t> fold_bricks_;  ///< frame end: bricks with a + link that may fold (solver::may_fold)
   std::string forced_kernel_;
   const char* kernel_name_ = "";
   std::chrono::steady_clock::time_point phase_[kPhaseCount][2];  ///< begin and end of each Phase

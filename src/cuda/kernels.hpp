@@ -658,8 +658,8 @@ struct CheckArgs {
   solver::Wall wall;
   int* found = nullptr;             ///< set to 1 when some element or link fails the test
   std::uint8_t* bricks = nullptr;   ///< per brick: set to 1 when one of its elements fails it
-  /// The frame-end fold guard's test instead: a + link outside its fold box (fold_limits), where
-  /// alone a cell can fold; the wall is not tested.
+  /// The frame-end fold guard's test instead: a + link that may take part in a fold
+  /// (solver::may_fold); the wall is not tested.
   bool fold = false;
 };
 
@@ -685,7 +685,7 @@ HPCM_HD void check_links_block(const CheckArgs& a, long long b, B& blk) {
       const Vec3 pe = L.disp[e];
       if (a.fold) {
         for (int ax = 0; ax < 3; ++ax)
-          if (c[ax] + 1 < d[ax] && solver::outside_fold_box(pe, L.disp[e + stride[ax]], L.link_of(ax, e, e + stride[ax]), ax))
+          if (c[ax] + 1 < d[ax] && solver::may_fold(pe, L.disp[e + stride[ax]], ax))
             found = true;
         continue;
       }

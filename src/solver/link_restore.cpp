@@ -67,7 +67,7 @@ void append_fold_suspects(const Model& m, const Index* begin, const Index* end, 
                               const Vec3 un = pos.displacement(n);
                               const Vec3& u_lo = lo == e ? ue : un;
                               const Vec3& u_hi = hi == e ? ue : un;
-                              if (link_violation(u_lo, u_hi, fold_limits(m.link(a, lo)), a) > 0.0f) {
+                              if (may_fold(u_lo, u_hi, a)) {
                                 suspects.push_back(e);
                                 suspects.push_back(n);
                               }
@@ -193,8 +193,8 @@ void LinkRestorer::guard_folds(const Model& m, const BrickGrid& grid, const std:
   guard_moved_.clear();
   record_moved_ = &guard_moved_;  // an element moved in two rounds counts once
   for (int round = 0; round <= kFoldGuardRounds; ++round) {
-    // Links outside their fold boxes can only be among the links the check found outside their
-    // boxes, or at the elements the guard has moved since.
+    // Links that may fold can only be among the links the check found outside their boxes, or
+    // at the elements the guard has moved since.
     guard_elements_ = link_seeds;
     guard_elements_.insert(guard_elements_.end(), guard_moved_.begin(), guard_moved_.end());
     suspects_.clear();

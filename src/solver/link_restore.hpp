@@ -28,8 +28,8 @@ struct RestoreAccess {
 void find_violations(const Model& m, const BrickGrid& grid, const std::vector<Index>& bricks, const RestoreAccess& pos,
                      const Wall& wall, std::vector<Index>& seeds, RestoreStats& st);
 
-/// The ends of the links of `elements` that lie outside their fold boxes (fold_limits): the
-/// only corners a folded cell can have. Appended to `suspects` (ascending, unique).
+/// The ends of the links of `elements` that may take part in a fold (may_fold): the only
+/// corners a folded cell can have. Appended to `suspects` (ascending, unique).
 void find_fold_suspects(const Model& m, const std::vector<Index>& elements, const RestoreAccess& pos,
                         std::vector<Index>& suspects);
 
@@ -58,8 +58,8 @@ class LinkRestorer {
  public:
   void init(const Model& m);
   /// The frame-end fold guard (docs/solver.md, "No fold"). `link_seeds`: the ends of the links
-  /// outside their boxes (find_violations); a folded cell has a link outside its fold box, which
-  /// is outside its box too, so only the cells around those links are tested. Where cells are
+  /// outside their boxes (find_violations); a folded cell has a link that may fold (may_fold),
+  /// which is outside its box too, so only the cells around those links are tested. Where cells are
   /// folded, the links around their corners
   /// are restored to their boxes, up to kFoldGuardRounds times; cells still folded then have every
   /// link of `link_seeds` restored, and links in their boxes cannot fold a cell (the shear cap).

@@ -40,12 +40,11 @@ inline constexpr float kRestoreTolerance = 4e-6f;
 /// stops there and says so (RestoreStats::capped) rather than running on.
 inline constexpr int kRestoreVisitsPerElement = 64;
 
-/// Whether the link (lo end at p_lo, hi end p_hi = lo + unit_a at rest) lies outside its fold box
-/// (fold_limits) by more than kRestoreTolerance: where alone a cell can fold. The frame-end fold
-/// guard's brick test on both backends.
-HPCM_HD inline bool outside_fold_box(const Vec3& p_lo, const Vec3& p_hi, const LinkLimits& L, int a) {
-  return link_violation(p_lo, p_hi, fold_limits(L), a) > kRestoreTolerance;
-}
+/// Whether the link along axis a (ends displaced by u_lo and u_hi from rest) may take part in a
+/// fold: its column dominance is below kFoldDominance. Only such a link can be an edge of a
+/// folded cell, and it lies outside its box (the shear cap gives a link in its box 0.02). The
+/// frame-end fold guard's test on both backends.
+HPCM_HD inline bool may_fold(const Vec3& u_lo, const Vec3& u_hi, int a) { return column_dominance(u_lo, u_hi, a) < kFoldDominance; }
 
 /// How far displacement x of element e on axis b lies outside the interval its link to neighbour
 /// n (displacement cn on that axis) allows, by the same float arithmetic as link_violation (0 inside).

@@ -1,7 +1,9 @@
 // The fold guard's search for folded cells in chunks (solver::find_fold_suspects and
 // solver::find_folded_cells with a ParallelFor, which the CPU backend runs on its pool) finds
 // the same suspects, the same folded cells and the same corners as the one-thread search,
-// whatever order or threads run the chunks: a frame's result must not depend on them.
+// whatever order or threads run the chunks: a frame's result must not depend on them. And the
+// search is complete: the cells around the links that may fold (column dominance below
+// kFoldDominance) are every folded cell of the lattice.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -45,10 +47,10 @@ TEST(FoldSearch, ChunksFindTheSameCellsAsOneThread) {
                               Params{});
   const std::size_t n = static_cast<std::size_t>(m.size());
   std::mt19937 rng(7);
-  std::uniform_real_distribution<float> jitter(-0.45f, 0.45f);
+  std::uniform_real_distribution<float> jitter(-0.7f, 0.7f);
   std::uniform_int_distribution<Index> pick(0, m.size() - 1);
   for (int trial = 0; trial < 4; ++trial) {
-    // A smooth field with scattered kicks: many links outside their fold boxes, some cells folded.
+    // A smooth field with scattered kicks: many links that may fold, some cells folded.
     std::vector<Vec3> u(n, Vec3{});
     for (int k = 0; k < 1500 * (trial + 1); ++k) u[static_cast<std::size_t>(pick(rng))] = Vec3{jitter(rng), jitter(rng), jitter(rng)};
     const VectorAccess pos(u);
@@ -71,4 +73,41 @@ TEST(FoldSearch, ChunksFindTheSameCellsAsOneThread) {
       EXPECT_EQ(c2, corners) << "trial " << trial;
     }
   }
+}
+
+TEST(FoldSearch, SuspectsReachEveryFoldedCell) {
+  const Model m = build_model(test::make_volume({24, 20, 16}, [](int x, int, int) { return x < 12 ? 50.0f : -100.0f; }),
+                              Params{});
+  const std::size_t n = static_cast<std::size_t>(m.size());
+  std::vector<Index> all(n);
+  for (Index e = 0; e < m.size(); ++e) all[static_cast<std::size_t>(e)] = e;
+  std::mt19937 rng(11);
+  std::uniform_int_distribution<Index> pick(0, m.size() - 1);
+  Index folded_total = 0;
+  // Kicks from small (cells near the edge of folding) to large, on a smooth shear that takes
+  // every link close to its dominance margin: each folded cell must be found from the suspects.
+  for (const float amplitude : {0.3f, 0.45f, 0.6f, 0.9f}) {
+    for (const float shear : {0.0f, 0.3f, 0.45f}) {
+      std::uniform_real_distribution<float> jitter(-amplitude, amplitude);
+      std::vector<Vec3> u(n);
+      for (Index e = 0; e < m.size(); ++e) {
+        const Int3 c = m.coords(e);
+        u[static_cast<std::size_t>(e)] = Vec3{shear * static_cast<float>(c.y), shear * static_cast<float>(c.z), 0.0f};
+      }
+      for (int k = 0; k < 400; ++k) {
+        Vec3& v = u[static_cast<std::size_t>(pick(rng))];
+        v = v + Vec3{jitter(rng), jitter(rng), jitter(rng)};
+      }
+      const VectorAccess pos(u);
+      std::vector<Index> every_corner, suspects, corners;
+      const Index every = solver::find_folded_cells(m, all, pos, every_corner);  // every cell tested
+      solver::find_fold_suspects(m, all, pos, suspects);
+      const Index found = suspects.empty() ? 0 : solver::find_folded_cells(m, suspects, pos, corners);
+      EXPECT_EQ(found, every) << "amplitude " << amplitude << ", shear " << shear;
+      EXPECT_EQ(corners, every_corner) << "amplitude " << amplitude << ", shear " << shear;
+      EXPECT_LT(suspects.size(), n / 2) << "the test looks at a few cells, not all of them";
+      folded_total += every;
+    }
+  }
+  EXPECT_GT(folded_total, 100) << "the fields must fold cells to test anything";
 }
