@@ -1,3 +1,5 @@
+#include <cstdio>
+#include <cstdlib>
 #include "solver/link_restore.hpp"
 
 #include <algorithm>
@@ -210,7 +212,7 @@ void LinkRestorer::guard_folds(const Model& m, const BrickGrid& grid, const std:
     if (round == 0) st.violated_links = folded;
     if (folded == 0) break;
     // The last round restores every link found outside its box: then none can fold a cell.
-    restore(m, grid, round < kFoldGuardRounds ? folded_corners_ : link_seeds, pos, wall, moved, st);
+    restore(m, grid, round < kFoldGuardRounds ? folded_corners_ : link_seeds, false, pos, wall, moved, st);
   }
   record_moved_ = nullptr;
   std::sort(guard_moved_.begin(), guard_moved_.end());
@@ -219,30 +221,34 @@ void LinkRestorer::guard_folds(const Model& m, const BrickGrid& grid, const std:
 
 void LinkRestorer::init(const Model& m) {
   const std::size_t n = static_cast<std::size_t>(m.size());
-  queued_.assign(n, 0);
-  mark_.assign(n, 0);
+  for (Copy& c : copy_) {
+    c.val.assign(n, 0.0f);
+    c.stamp.assign(n, 0);
+    c.flags.assign(n, 0);
+  }
   moved_flag_.assign(n, 0);
-  stamp_.assign(n, 0);
   epoch_ = 0;
-  for (auto& v : val_) v.assign(n, 0.0f);
 }
 
 bool LinkRestorer::pass(const Model& m, const RestoreAccess& pos, int b, int k, const Wall& wall, bool upper,
                         const std::vector<Index>& seeds) {
-  queue_.clear();
+  Copy& cp = copy_[k];
+  std::vector<Index>& queue = cp.queue;
+  std::vector<std::uint8_t>& flags = cp.flags;
+  queue.clear();
   for (Index e : seeds)
-    if (!queued_[e] && !pos.fixed(e)) {
-      queued_[e] = 1;
-      queue_.push_back(e);
+    if (!(flags[e] & kQueued) && !pos.fixed(e)) {
+      flags[e] |= kQueued;
+      queue.push_back(e);
     }
   // FIFO work list: an element whose value changes re-queues its neighbours. The pass is a
   // monotone fixed-point iteration, so the visiting order does not change the result. Capped
   // (restore.hpp, kRestoreVisitsPerElement): a pass that reaches the cap stops and says so.
   const std::size_t cap = static_cast<std::size_t>(visits_per_element_) * static_cast<std::size_t>(m.size());
   std::size_t head = 0;
-  for (; head < queue_.size() && head < cap; ++head) {
-    const Index e = queue_[head];
-    queued_[e] = 0;
+  for (; head < queue.size() && head < cap; ++head) {
+    const Index e = queue[head];
+    flags[e] &= static_cast<std::uint8_t>(~kQueued);
     const Int3 c = m.coords(e);
     float bound = upper ? wall_hi_of(wall, b, c[b]) : wall_lo_of(wall, b, c[b]);
     for_each_face_neighbour(m, c.x, c.y, c.z, e, [&](Index n, int a, int side, const LinkLimits& L) {
@@ -253,61 +259,107 @@ bool LinkRestorer::pass(const Model& m, const RestoreAccess& pos, int b, int k, 
     const float nx = restore_step(x, bound, upper);
     if (nx == x) continue;
     x = nx;
-    if (!mark_[e]) {
-      mark_[e] = 1;
-      changed_.push_back(e);
+    if (!(flags[e] & kChanged)) {
+      flags[e] |= kChanged;
+      cp.changed.push_back(e);
     }
     for_each_face_neighbour(m, c.x, c.y, c.z, e, [&](Index n, int, int, const LinkLimits&) {
-      if (!queued_[n] && !pos.fixed(n)) {
-        queued_[n] = 1;
-        queue_.push_back(n);
+      if (!(flags[n] & kQueued) && !pos.fixed(n)) {
+        flags[n] |= kQueued;
+        queue.push_back(n);
       }
     });
   }
-  const bool finished = head == queue_.size();
-  for (; head < queue_.size(); ++head) queued_[queue_[head]] = 0;  // left over at the cap
+  const bool finished = head == queue.size();
+  for (; head < queue.size(); ++head) flags[queue[head]] &= static_cast<std::uint8_t>(~kQueued);  // left over at the cap
   return finished;
+}
+
+bool LinkRestorer::both_orders(const Model& m, const RestoreAccess& pos, int b, const Wall& wall,
+                               const std::vector<Index>& seeds, bool every_violation, bool parallel) {
+  // Copy 0: raise(lower(x)); copy 1: lower(raise(x)). Lowering an element only loosens its
+  // neighbours' lower bounds (raising, their upper ones), so after a copy's first pass its second
+  // can find work only at the elements out of their boxes before it and those its first pass
+  // moved. Where the seeds are every such element, each copy's second pass starts from them and
+  // its own first pass's moves, and the copies run through without waiting for each other.
+  // Elsewhere (the fold guard's corners) both second passes start from the seeds and every move
+  // of both first passes, as they always have: what one copy's moves reach, the other repairs too.
+  auto for_both = [&](auto&& order) {
+    if (parallel) {
+      parallel_(2, [&](std::int64_t k) { order(static_cast<int>(k)); });
+    } else {
+      for (int k = 0; k < 2; ++k) order(k);
+    }
+  };
+  bool ok[2] = {true, true};
+  if (every_violation) {
+    for_both([&](int k) {
+      Copy& cp = copy_[k];
+      ok[k] = pass(m, pos, b, k, wall, k == 0, seeds);
+      cp.seeds = seeds;
+      cp.seeds.insert(cp.seeds.end(), cp.changed.begin(), cp.changed.end());
+      ok[k] = pass(m, pos, b, k, wall, k != 0, cp.seeds) && ok[k];
+    });
+  } else {
+    for_both([&](int k) { ok[k] = pass(m, pos, b, k, wall, k == 0, seeds); });
+    pass_seeds_ = seeds;
+    for (const Copy& cp : copy_) pass_seeds_.insert(pass_seeds_.end(), cp.changed.begin(), cp.changed.end());
+    for_both([&](int k) { ok[k] = pass(m, pos, b, k, wall, k != 0, pass_seeds_) && ok[k]; });
+  }
+  return ok[0] && ok[1];
 }
 
 void LinkRestorer::restore(const Model& m, const BrickGrid& grid, const std::vector<Index>& seeds, RestoreAccess& pos,
                            const Wall& wall, std::vector<std::uint8_t>& moved, RestoreStats& st) {
+  restore(m, grid, seeds, true, pos, wall, moved, st);
+}
+
+void LinkRestorer::restore(const Model& m, const BrickGrid& grid, const std::vector<Index>& seeds, bool every_violation,
+                           RestoreAccess& pos, const Wall& wall, std::vector<std::uint8_t>& moved, RestoreStats& st) {
   if (seeds.empty()) return;
+  // The two orders on two threads pay off only where the passes have work to share.
+  constexpr std::size_t kParallelSeeds = 64;
+  const bool parallel = parallel_ && seeds.size() >= kParallelSeeds;
+  Copy& c0 = copy_[0];
+  Copy& c1 = copy_[1];
   bool ok = true;
   for (int b = 0; b < 3; ++b) {
-    ++epoch_;
-    if (epoch_ == 0) {  // wrapped: forget every stamp
-      std::fill(stamp_.begin(), stamp_.end(), 0);
+    if (++epoch_ == 0) {  // wrapped: forget every stamp
+      for (Copy& c : copy_) std::fill(c.stamp.begin(), c.stamp.end(), 0);
       epoch_ = 1;
     }
-    changed_.clear();
-    // Copy 0: raise(lower(x)); copy 1: lower(raise(x)). The second pass of each copy starts
-    // from the seeds and every element the first passes moved (only there can it find work).
-    ok &= pass(m, pos, b, 0, wall, true, seeds);
-    ok &= pass(m, pos, b, 1, wall, false, seeds);
-    pass_seeds_ = seeds;
-    pass_seeds_.insert(pass_seeds_.end(), changed_.begin(), changed_.end());
-    ok &= pass(m, pos, b, 0, wall, false, pass_seeds_);
-    ok &= pass(m, pos, b, 1, wall, true, pass_seeds_);
+    ok = both_orders(m, pos, b, wall, seeds, every_violation, parallel) && ok;
+    // Every element either copy moved, once, in copy 0's list (its flags say which are listed).
+    for (Index e : c1.changed)
+      if (!(c0.flags[e] & kChanged)) {
+        c0.flags[e] |= kChanged;
+        c0.changed.push_back(e);
+      }
+    for (Index e : c1.changed) c1.flags[e] &= static_cast<std::uint8_t>(~kChanged);
+    c1.changed.clear();
     // The midpoints, then lower and raise once more from them (copy 0): rounding a midpoint can
     // leave a link a float step or so outside its box; these passes move such elements by about
     // that much and put every link they touch back (within half a float step, restore.hpp).
     // Seeded with every changed element and its neighbours (either end of a link may have to
     // move); a seed listed twice is queued once.
     auto changed_and_neighbours = [&] {
-      pass_seeds_ = changed_;
-      for (Index e : changed_) {
+      pass_seeds_ = c0.changed;
+      for (Index e : c0.changed) {
         const Int3 c = m.coords(e);
         for_each_face_neighbour(m, c.x, c.y, c.z, e, [&](Index n, int, int, const LinkLimits&) { pass_seeds_.push_back(n); });
       }
     };
-    for (Index e : changed_) val_[0][e] = val_[1][e] = 0.5f * (val_[0][e] + val_[1][e]);
+    for (Index e : c0.changed) {
+      const float mid = 0.5f * (value(pos, b, 0, e) + value(pos, b, 1, e));  // both copies loaded
+      c0.val[e] = c1.val[e] = mid;
+    }
     changed_and_neighbours();
     ok &= pass(m, pos, b, 0, wall, true, pass_seeds_);
     changed_and_neighbours();
     ok &= pass(m, pos, b, 0, wall, false, pass_seeds_);
-    for (Index e : changed_) {
-      mark_[e] = 0;
-      const float restored = val_[0][e];
+    for (Index e : c0.changed) {
+      c0.flags[e] &= static_cast<std::uint8_t>(~kChanged);
+      const float restored = c0.val[e];
       if (restored == pos.displacement(e)[b]) continue;
       pos.set_coordinate(e, b, restored);
       moved[grid.brick_of_index(e)] = 1;
@@ -316,6 +368,7 @@ void LinkRestorer::restore(const Model& m, const BrickGrid& grid, const std::vec
         moved_list_.push_back(e);
       }
     }
+    c0.changed.clear();
   }
   if (record_moved_) record_moved_->insert(record_moved_->end(), moved_list_.begin(), moved_list_.end());
   else st.moved += static_cast<Index>(moved_list_.size());

@@ -68,38 +68,58 @@ class LinkRestorer {
                    const Wall& wall, std::vector<std::uint8_t>& moved, RestoreStats& st);
   /// The cap on each pass, in visits per lattice element (kRestoreVisitsPerElement; tests lower it).
   void set_visits_per_element(int visits) { visits_per_element_ = visits; }
-  /// Lets the fold guard's search for folded cells run on a backend's threads (same result).
+  /// Lets the fold guard's search for folded cells and the restoration's two pass orders run on
+  /// a backend's threads (the same result: each order has its own working state).
   void set_parallel(ParallelFor parallel) { parallel_ = std::move(parallel); }
-  /// Restores consistency around `seeds` (ascending, unique linear indices): every link and
-  /// the wall, FIXED elements untouched. Bricks whose elements moved are flagged in `moved`;
+  /// Restores consistency around `seeds` (ascending, unique linear indices; every element of the
+  /// region out of its box or the wall, as find_violations lists them): every link and the
+  /// wall, FIXED elements untouched. Bricks whose elements moved are flagged in `moved`;
   /// st.moved counts the elements moved.
   void restore(const Model& m, const BrickGrid& grid, const std::vector<Index>& seeds, RestoreAccess& pos,
                const Wall& wall, std::vector<std::uint8_t>& moved, RestoreStats& st);
 
  private:
-  /// One pass over coordinate b of copy k (0 or 1), seeded with `seeds`; records the elements
-  /// whose value changed in changed_ (each once per axis).
+  /// The working state of one pass order (copy k of coordinate b): copy 0 lowers to the upper
+  /// bounds, then raises to the lower ones; copy 1 the other way round. The two share nothing,
+  /// so their first two passes can run on two threads.
+  struct Copy {
+    std::vector<float> val;            ///< coordinate b, loaded from pos on first use in this axis
+    std::vector<std::uint16_t> stamp;  ///< the axis (epoch_) val was loaded in
+    std::vector<std::uint8_t> flags;   ///< kQueued, kChanged
+    std::vector<Index> queue, changed, seeds;  ///< changed: each element once per axis
+  };
+  static constexpr std::uint8_t kQueued = 1, kChanged = 2;
+  /// One pass over coordinate b of copy k, seeded with `seeds`; lists the elements whose value
+  /// changed in the copy's `changed` (each once per axis).
   /// Returns false when the pass reached its cap (kRestoreVisitsPerElement) and stopped.
   bool pass(const Model& m, const RestoreAccess& pos, int b, int k, const Wall& wall, bool upper,
             const std::vector<Index>& seeds);
+  /// Both pass orders of coordinate b from `seeds` (on two threads when `parallel`); each copy's
+  /// second pass is seeded from its own first pass when the seeds are `every_violation` of the
+  /// region, else from both. Returns false when a pass reached its cap.
+  bool both_orders(const Model& m, const RestoreAccess& pos, int b, const Wall& wall, const std::vector<Index>& seeds,
+                   bool every_violation, bool parallel);
+  /// restore(), told whether the seeds are every element out of its box or the wall in the
+  /// region (the check's seeds) or a part of them (the fold guard's corners).
+  void restore(const Model& m, const BrickGrid& grid, const std::vector<Index>& seeds, bool every_violation,
+               RestoreAccess& pos, const Wall& wall, std::vector<std::uint8_t>& moved, RestoreStats& st);
   /// The coordinate of element e in copy k, loaded from pos on first use in this axis.
   float& value(const RestoreAccess& pos, int b, int k, Index e) {
-    if (stamp_[e] != epoch_) {
-      stamp_[e] = epoch_;
-      val_[0][e] = val_[1][e] = pos.displacement(e)[b];
+    Copy& c = copy_[k];
+    if (c.stamp[e] != epoch_) {
+      c.stamp[e] = epoch_;
+      c.val[e] = pos.displacement(e)[b];
     }
-    return val_[k][e];
+    return c.val[e];
   }
-  std::vector<Index> changed_, queue_, pass_seeds_, moved_list_, guard_elements_, suspects_, folded_corners_;
+  Copy copy_[2];
+  std::uint16_t epoch_ = 0;
+  std::vector<Index> pass_seeds_, moved_list_, guard_elements_, suspects_, folded_corners_;
   std::vector<Index> guard_moved_;             ///< elements the fold guard moved, over its rounds
   std::vector<Index>* record_moved_ = nullptr;  ///< set: restore() lists its moved elements here instead of counting
-  std::vector<std::uint8_t> queued_, moved_flag_;
-  std::vector<std::uint8_t> mark_;  ///< changed by a pass on the current axis (listed in changed_)
-  std::vector<std::uint32_t> stamp_;
-  std::uint32_t epoch_ = 0;
-  std::vector<float> val_[2];  ///< coordinate b under the two pass orders
+  std::vector<std::uint8_t> moved_flag_;
   int visits_per_element_ = kRestoreVisitsPerElement;
-  ParallelFor parallel_;  ///< empty: the guard's search runs on the calling thread
+  ParallelFor parallel_;  ///< empty: the guard's search and the passes run on the calling thread
 };
 
 }  // namespace hpcm::solver
