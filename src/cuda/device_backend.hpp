@@ -729,6 +729,8 @@ class DeviceBackend final : public Backend {
   float delta_ = 1.0f;
   solver::BucketWidth bucket_width_;  ///< of the installed FIXED set (delta_ is its value)
   // link restoration on the host (restore_links)
+  /// Runs on the calling thread (no set_parallel): the brick cache copies a brick from the
+  /// device when first read, so its reads must not come from two threads at once.
   solver::LinkRestorer restorer_;
   solver::Wall wall_;
   std::vector<std::uint8_t> host_bricks_;
