@@ -1,5 +1,3 @@
-#include <cstdio>
-#include <cstdlib>
 #include "solver/link_restore.hpp"
 
 #include <algorithm>
