@@ -277,9 +277,10 @@ bool LinkRestorer::both_orders(const Model& m, const RestoreAccess& pos, int b, 
                                const std::vector<Index>& seeds, bool every_violation, bool parallel) {
   // Copy 0: raise(lower(x)); copy 1: lower(raise(x)). Lowering an element only loosens its
   // neighbours' lower bounds (raising, their upper ones), so after a copy's first pass its second
-  // can find work only at the elements out of their boxes before it and those its first pass
-  // moved. Where the seeds are every such element, each copy's second pass starts from them and
-  // its own first pass's moves, and the copies run through without waiting for each other.
+  // can find a link outside its box by more than the tolerance only at the elements out of their
+  // boxes before it and those its first pass moved. Where the seeds are every such element, each
+  // copy's second pass starts from them and its own first pass's moves, and the copies run
+  // through without waiting for each other.
   // Elsewhere (the fold guard's corners) both second passes start from the seeds and every move
   // of both first passes, as they always have: what one copy's moves reach, the other repairs too.
   auto for_both = [&](auto&& order) {
