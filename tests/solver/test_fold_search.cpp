@@ -111,3 +111,29 @@ TEST(FoldSearch, SuspectsReachEveryFoldedCell) {
   }
   EXPECT_GT(folded_total, 100) << "the fields must fold cells to test anything";
 }
+
+// The shear cap keeps every link in its box at a column dominance of at least 0.02, so the
+// guard never takes a link in its box for a suspect: at every corner of the box (the least
+// spacing, the largest shear on both other axes, either sign), for tolerances across (0, 1].
+TEST(FoldSearch, LinksInTheirBoxesAreNeverSuspects) {
+  int corners = 0;
+  for (float tau = 0.001f; tau <= 1.0f; tau += 0.001f) {
+    const LinkLimits L = limits_from_tau(tau, 1.0f);
+    for (int a = 0; a < 3; ++a)
+      for (const float stretch : {L.min_stretch, L.max_stretch})
+        for (const float s1 : {-L.shear, L.shear})
+          for (const float s2 : {-L.shear, L.shear}) {
+            Vec3 d{};
+            d[a] = stretch;
+            d[(a + 1) % 3] = s1;
+            d[(a + 2) % 3] = s2;
+            const Vec3 u_lo{0.3f, -0.2f, 0.1f};
+            EXPECT_GE(column_dominance(u_lo, u_lo + d, a), 0.02f - 1e-5f) << "tau " << tau << ", axis " << a;
+            EXPECT_FALSE(solver::may_fold(u_lo, u_lo + d, a)) << "tau " << tau << ", axis " << a;
+            ++corners;
+          }
+  }
+  EXPECT_GT(corners, 20000);
+  // And a link sheared past its spacing is a suspect.
+  EXPECT_TRUE(solver::may_fold(Vec3{}, Vec3{-0.5f, 0.3f, 0.25f}, 0));
+}
