@@ -8,10 +8,10 @@
 
 #include <algorithm>
 #include <random>
-#include <thread>
 
 #include "hpcm/state.hpp"
 #include "solver/link_restore.hpp"
+#include "restore_test_util.hpp"
 #include "solver_test_util.hpp"
 
 using namespace hpcm;
@@ -25,20 +25,6 @@ struct VectorAccess : solver::RestoreAccess {
   void set_coordinate(Index, int, float) override { ADD_FAILURE() << "the search must not move anything"; }
   bool fixed(Index) const override { return false; }
 };
-
-// Items in reverse order on this thread.
-void reverse_order(std::int64_t items, const std::function<void(std::int64_t)>& item) {
-  for (std::int64_t i = items - 1; i >= 0; --i) item(i);
-}
-
-// Items split between two threads (run by the ThreadSanitizer job: the chunks share nothing).
-void two_threads(std::int64_t items, const std::function<void(std::int64_t)>& item) {
-  std::thread odd([&] {
-    for (std::int64_t i = 1; i < items; i += 2) item(i);
-  });
-  for (std::int64_t i = 0; i < items; i += 2) item(i);
-  odd.join();
-}
 
 }  // namespace
 
@@ -64,7 +50,7 @@ TEST(FoldSearch, ChunksFindTheSameCellsAsOneThread) {
     ASSERT_GT(suspects.size(), 1000u) << "trial " << trial;
     ASSERT_GT(folded, 0) << "trial " << trial << ": the case must fold cells to compare anything";
 
-    for (const solver::ParallelFor& parallel : {solver::ParallelFor(reverse_order), solver::ParallelFor(two_threads)}) {
+    for (const solver::ParallelFor& parallel : {solver::ParallelFor(test::reverse_order), solver::ParallelFor(test::two_threads)}) {
       std::vector<Index> s2, c2;
       solver::find_fold_suspects(m, elements, pos, s2, parallel);
       const Index f2 = solver::find_folded_cells(m, s2, pos, c2, parallel);

@@ -15,6 +15,7 @@
 #include "hpcm/simulation.hpp"
 #include "hpcm/state.hpp"
 #include "solver/link_restore.hpp"
+#include "restore_test_util.hpp"
 #include "solver_test_util.hpp"
 
 using namespace hpcm;
@@ -121,19 +122,6 @@ TEST(RestoreRoundingPull, PullAtTheToolLimitFarFromTheOrigin) {
   }
 }
 
-namespace {
-
-struct FixedVectorAccess : solver::RestoreAccess {
-  std::vector<Vec3>& pos;
-  const std::vector<std::uint8_t>& fixed_flags;
-  FixedVectorAccess(std::vector<Vec3>& p, const std::vector<std::uint8_t>& f) : pos(p), fixed_flags(f) {}
-  Vec3 displacement(Index i) const override { return pos[static_cast<std::size_t>(i)]; }
-  void set_coordinate(Index i, int axis, float value) override { pos[static_cast<std::size_t>(i)][axis] = value; }
-  bool fixed(Index i) const override { return fixed_flags[static_cast<std::size_t>(i)] != 0; }
-};
-
-}  // namespace
-
 // The DICOM series at f = 2 (256 x 256 x 10), condition B, pulled to the tool limit: a chain from a
 // grabbed (FIXED) element stretched to its slack, whose next link the stage left outside its box
 // by less than the restoration's tolerance. With inward rounding on absolute coordinates, the
@@ -183,7 +171,7 @@ TEST(RestoreRoundingPull, ChainAtTheToolLimitWithALinkTheStageLeftWithinTheToler
       // D, beside A: 0.01 beyond its grabbed neighbour's box. The restoration lowers it back to
       // the bound (A's coordinate) and then looks at its neighbours, A among them.
       pos[static_cast<std::size_t>(m.index(gx + 1, 1, 0))].x += 0.01f;
-      FixedVectorAccess acc(pos, fixed);
+      test::FixedVectorAccess acc(pos, fixed);
       std::vector<Index> all(static_cast<std::size_t>(grid.count));
       for (Index i = 0; i < grid.count; ++i) all[static_cast<std::size_t>(i)] = i;
       std::vector<Index> seeds;

@@ -4,38 +4,16 @@
 // each is seeded from that order's own first pass. Run by the ThreadSanitizer job.
 #include <gtest/gtest.h>
 
-#include <functional>
 #include <random>
-#include <thread>
 
 #include "hpcm/state.hpp"
 #include "solver/link_restore.hpp"
+#include "restore_test_util.hpp"
 #include "solver_test_util.hpp"
 
 using namespace hpcm;
 
 namespace {
-
-struct VectorAccess : solver::RestoreAccess {
-  std::vector<Vec3>& pos;
-  const std::vector<std::uint8_t>& fixed_flags;
-  VectorAccess(std::vector<Vec3>& p, const std::vector<std::uint8_t>& f) : pos(p), fixed_flags(f) {}
-  Vec3 displacement(Index i) const override { return pos[static_cast<std::size_t>(i)]; }
-  void set_coordinate(Index i, int axis, float value) override { pos[static_cast<std::size_t>(i)][axis] = value; }
-  bool fixed(Index i) const override { return fixed_flags[static_cast<std::size_t>(i)] != 0; }
-};
-
-void two_threads(std::int64_t items, const std::function<void(std::int64_t)>& item) {
-  std::thread odd([&] {
-    for (std::int64_t i = 1; i < items; i += 2) item(i);
-  });
-  for (std::int64_t i = 0; i < items; i += 2) item(i);
-  odd.join();
-}
-
-void reverse_order(std::int64_t items, const std::function<void(std::int64_t)>& item) {
-  for (std::int64_t i = items - 1; i >= 0; --i) item(i);
-}
 
 struct Outcome {
   std::vector<Vec3> pos;
@@ -53,7 +31,7 @@ std::vector<Index> violated(const Model& m, const solver::BrickGrid& grid, const
 
 Outcome restore_with(const Model& m, const solver::BrickGrid& grid, const solver::Wall& wall, std::vector<Vec3> pos,
                      const std::vector<std::uint8_t>& fixed, const solver::ParallelFor& parallel) {
-  VectorAccess acc(pos, fixed);
+  test::FixedVectorAccess acc(pos, fixed);
   solver::LinkRestorer restorer;
   restorer.init(m);
   if (parallel) restorer.set_parallel(parallel);
@@ -108,7 +86,7 @@ TEST(RestoreThreads, TwoPassOrdersOnTwoThreadsGiveTheSamePositions) {
     const Outcome one = restore_with(m, grid, wall, pos, fixed, {});
     ASSERT_GT(one.st.moved, 1000) << "trial " << trial << ": the restoration must move elements to compare anything";
     EXPECT_LE(max_link_violation(m, one.pos), 1e-5f) << "trial " << trial;
-    for (const solver::ParallelFor& parallel : {solver::ParallelFor(two_threads), solver::ParallelFor(reverse_order)}) {
+    for (const solver::ParallelFor& parallel : {solver::ParallelFor(test::two_threads), solver::ParallelFor(test::reverse_order)}) {
       const Outcome other = restore_with(m, grid, wall, pos, fixed, parallel);
       EXPECT_EQ(other.st.moved, one.st.moved) << "trial " << trial;
       EXPECT_EQ(other.st.capped, one.st.capped) << "trial " << trial;
