@@ -348,10 +348,8 @@ void LinkRestorer::restore(const Model& m, const BrickGrid& grid, const std::vec
         for_each_face_neighbour(m, c.x, c.y, c.z, e, [&](Index n, int, int, const LinkLimits&) { pass_seeds_.push_back(n); });
       }
     };
-    for (Index e : c0.changed) {
-      const float mid = 0.5f * (value(pos, b, 0, e) + value(pos, b, 1, e));  // both copies loaded
-      c0.val[e] = c1.val[e] = mid;
-    }
+    // Copy 1 is not read again in this axis: its value feeds the midpoint only.
+    for (Index e : c0.changed) c0.val[e] = 0.5f * (value(pos, b, 0, e) + value(pos, b, 1, e));
     changed_and_neighbours();
     ok &= pass(m, pos, b, 0, wall, true, pass_seeds_);
     changed_and_neighbours();
